@@ -1,0 +1,1 @@
+"""Pure core: algorithms with no rclpy import, unit-tested directly."""

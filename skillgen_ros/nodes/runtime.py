@@ -1,8 +1,10 @@
 """The one way every node process starts and stops.
 
-`run_node(factory)` does what ros2/demos do: `rclpy.init` inside a context manager, an explicit
-executor, Ctrl-C and external shutdown caught, no traceback on exit, and exit status 0 for a
-clean stop. Bad parameters (`ParameterError`) exit 2 with a one-line reason instead of a trace.
+`run_node(factory)` does what ros2/demos do: init, an explicit executor, Ctrl-C and external
+shutdown caught, no traceback on exit, exit status 0 for a clean stop. User mistakes exit 2 with
+one line "REASON: message" instead of a trace: an unparsable params file, a parameter of the wrong
+type, or a `SkillGenError` (e.g. ParameterError) raised while the node is built.
+(rclpy in Jazzy has no context-manager `init`, hence the explicit try/finally.)
 """
 from __future__ import annotations
 
@@ -12,29 +14,48 @@ from typing import Callable
 from skillgen_ros import rosenv  # noqa: F401  (sets loopback discovery before rclpy loads)
 
 import rclpy
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 
 from skillgen_ros.core.errors import SkillGenError
 
 
-def run_node(factory: Callable[[], "rclpy.node.Node"], args=None, threads: int = 4) -> int:
+def _fail(name: str, reason: str, msg: str) -> int:
+    print(f"[{name}] {reason}: {msg}", file=sys.stderr, flush=True)
+    return 2
+
+
+def run_node(factory: Callable[[], "rclpy.node.Node"], args=None, threads: int = 4, name: str = "") -> int:
     args = sys.argv if args is None else args
+    name = name or getattr(factory, "__name__", "node")
     try:
-        with rclpy.init(args=args):
-            try:
-                node = factory()
-            except SkillGenError as e:
-                print(f"[{getattr(factory, '__name__', 'node')}] {e}", file=sys.stderr)
-                return 2
-            executor = MultiThreadedExecutor(num_threads=threads)
-            executor.add_node(node)
-            try:
-                executor.spin()
-            finally:
-                executor.shutdown()
-                node.destroy_node()
+        rclpy.init(args=args)
+    except rclpy._rclpy_pybind11.RCLError as e:  # bad --ros-args / unparsable params file
+        return _fail(name, "INVALID_PARAMETER", str(e).split(", at ")[0])
+    node = None
+    try:
+        try:
+            node = factory()
+        except SkillGenError as e:
+            return _fail(name, e.reason, str(e.args[0]))
+        except ParameterException as e:  # wrong type / unset required parameter in the params file
+            return _fail(name, "INVALID_PARAMETER", str(e))
+        executor = MultiThreadedExecutor(num_threads=threads)
+        executor.add_node(node)
+        try:
+            executor.spin()
+        finally:
+            executor.shutdown()
     except (KeyboardInterrupt, ExternalShutdownException):
-        return 0
+        pass
+    finally:
+        if node is not None:
+            try:
+                node.destroy_node()
+            except Exception:  # noqa: BLE001 - context may already be gone at shutdown
+                pass
+        if rclpy.ok():
+            rclpy.shutdown()
     return 0
 
 

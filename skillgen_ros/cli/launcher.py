@@ -1,0 +1,102 @@
+"""`skillgen run` and `skillgen launch`: start package executables the way ros2 run/launch would.
+
+Executables are resolved through the ament index (<prefix>/lib/skillgen_ros/<exe>), exactly as
+`ros2 run` does, and every child gets the loopback-only ROS environment. `launch` starts a graph's
+nodes as separate processes, forwards Ctrl-C/SIGTERM to them, and if one dies on its own it names
+that node, stops the rest and exits non-zero.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from skillgen_ros import rosenv
+from skillgen_ros.graphs import PACKAGE, UnknownNodeError, load_graph, node_executables
+
+
+def resolve_executable(exe: str) -> Path:
+    """prefix/lib/skillgen_ros/<exe> from the ament index; UNKNOWN_NODE if absent."""
+    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+
+    known = node_executables()
+    if exe not in known:
+        raise UnknownNodeError(f"'{exe}' is not an executable of {PACKAGE}; known: {', '.join(known)}")
+    try:
+        prefix = Path(get_package_prefix(PACKAGE))
+    except PackageNotFoundError as e:  # not installed into the ament index: run bootstrap
+        raise UnknownNodeError(f"{PACKAGE} is not in the ament index ({e}); run scripts/bootstrap.sh") from e
+    path = prefix / "lib" / PACKAGE / exe
+    if not os.access(path, os.X_OK):
+        raise UnknownNodeError(f"{path} is missing or not executable; run scripts/bootstrap.sh")
+    return path
+
+
+def run(exe: str, args: list[str]) -> int:
+    path = resolve_executable(exe)
+    env = rosenv.ros_environment(dict(os.environ))
+    os.execve(str(path), [str(path), *args], env)
+    return 0  # not reached
+
+
+def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.1) -> int:
+    nodes = load_graph(graph)
+    env = rosenv.ros_environment(dict(os.environ))
+    procs: list[tuple[str, subprocess.Popen]] = []
+    stopping = {"flag": False}
+
+    def _forward(signum, _frame):
+        stopping["flag"] = True
+        for _, p in procs:
+            if p.poll() is None:
+                p.send_signal(signum)
+
+    old = {s: signal.signal(s, _forward) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        for n in nodes:
+            cmd = [str(resolve_executable(n.exe)), *n.args, *n.ros_args(), *(extra_ros_args or [])]
+            print(f"[launch] starting {n.exe}: {' '.join(cmd)}", file=sys.stderr, flush=True)
+            procs.append((n.exe, subprocess.Popen(cmd, env=env)))
+        failed: tuple[str, int] | None = None
+        while True:
+            alive = [(name, p) for name, p in procs if p.poll() is None]
+            if not stopping["flag"]:
+                for name, p in procs:
+                    rc = p.poll()
+                    if rc is not None:
+                        failed = (name, rc)
+                        break
+                if failed:
+                    print(f"[launch] node '{failed[0]}' exited with code {failed[1]}; stopping the graph",
+                          file=sys.stderr, flush=True)
+                    _forward(signal.SIGINT, None)
+                    stopping["flag"] = True
+            if not alive:
+                break
+            time.sleep(poll)
+        _wait_all(procs, timeout=10.0)
+        if failed:
+            return failed[1] if failed[1] > 0 else 1
+        bad = [(n, p.returncode) for n, p in procs if p.returncode not in (0, -signal.SIGINT, -signal.SIGTERM)]
+        for n, rc in bad:
+            print(f"[launch] node '{n}' exited with code {rc}", file=sys.stderr)
+        return 1 if bad else 0
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        for _, p in procs:
+            if p.poll() is None:
+                p.kill()
+
+
+def _wait_all(procs, timeout: float) -> None:
+    end = time.monotonic() + timeout
+    for _, p in procs:
+        try:
+            p.wait(max(0.0, end - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()

@@ -1,0 +1,79 @@
+"""`skillgen` entry point: run, launch, bag, and the product's commands.
+
+    skillgen run <exe> [--ros-args ...]     like `ros2 run skillgen_ros <exe>`
+    skillgen launch <graph>                 like `ros2 launch skillgen_ros skillgen.launch.py graph:=<graph>`
+    skillgen bag info <bag>                 like `ros2 bag info`
+    skillgen graphs                         list the graphs in graphs.yaml
+
+Errors print one line "REASON: message" and exit 2; no tracebacks for user mistakes.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from skillgen_ros.core.errors import SkillGenError
+
+# Subcommands implemented in their own modules: name -> (module, help). Each module has main(argv) -> int.
+DELEGATED = {
+    "bag": ("skillgen_ros.cli.bag", "inspect, record and play bags (rosbag2-layout MCAP)"),
+    "annotate": ("skillgen_ros.cli.annotate", "propose, override and validate skill annotations of a demo bag"),
+    "demos": ("skillgen_ros.cli.demos", "record source demonstrations (scripted demonstrator or teleop)"),
+    "generate": ("skillgen_ros.cli.generate", "run a generation through the node graph (the main job)"),
+}
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="skillgen", description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("run", help="run one node executable")
+    r.add_argument("exe")
+    r.add_argument("args", nargs=argparse.REMAINDER)
+    la = sub.add_parser("launch", help="start a named graph of nodes")
+    la.add_argument("graph")
+    la.add_argument("ros_args", nargs=argparse.REMAINDER, help="extra --ros-args for every node")
+    sub.add_parser("graphs", help="list graphs")
+    for name, (_, helptext) in DELEGATED.items():
+        d = sub.add_parser(name, help=helptext, add_help=False)
+        d.add_argument("rest", nargs=argparse.REMAINDER)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    ns = _parser().parse_args(argv)
+    try:
+        if ns.cmd == "run":
+            from skillgen_ros.cli.launcher import run
+
+            return run(ns.exe, ns.args)
+        if ns.cmd == "launch":
+            from skillgen_ros.cli.launcher import launch
+
+            extra = [a for a in ns.ros_args if a != "--ros-args"]
+            return launch(ns.graph, extra)
+        if ns.cmd == "graphs":
+            from skillgen_ros.graphs import load_graphs
+
+            for name, g in sorted(load_graphs().items()):
+                print(f"{name:14s} {' '.join(n['exe'] for n in g['nodes']):60s} {g.get('description', '')}")
+            return 0
+        module, _ = DELEGATED[ns.cmd]
+        try:
+            mod = importlib.import_module(module)
+        except ModuleNotFoundError as e:
+            if e.name == module:
+                print(f"NOT_IMPLEMENTED: 'skillgen {ns.cmd}' is not available yet", file=sys.stderr)
+                return 3
+            raise
+        return int(mod.main(ns.rest) or 0)
+    except SkillGenError as e:
+        print(str(e), file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

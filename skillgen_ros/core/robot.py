@@ -1,0 +1,38 @@
+"""The robot every lane agrees on: pybullet_data's Franka Panda.
+
+One place for the URDF, joint names, the end-effector frame and the limits, so that the sim's
+OSC controller, the planner's kinematics and the dataset all mean the same thing by "EE pose".
+The end-effector (tool centre point) is `panda_grasptarget`: 0.105 m along panda_hand's z, between
+the fingertips. Its z axis points out of the gripper; "retreat" is along -z.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+ARM_JOINTS = tuple(f"panda_joint{i}" for i in range(1, 8))
+FINGER_JOINTS = ("panda_finger_joint1", "panda_finger_joint2")
+EE_LINK = "panda_grasptarget"
+HAND_LINK = "panda_hand"
+BASE_LINK = "panda_link0"
+
+# Limits from the URDF (position) and Franka's datasheet (velocity, acceleration, jerk).
+Q_LOWER = np.array([-2.9671, -1.8326, -2.9671, -3.1416, -2.9671, -0.0873, -2.9671])
+Q_UPPER = np.array([2.9671, 1.8326, 2.9671, 0.0, 2.9671, 3.8223, 2.9671])
+V_MAX = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
+A_MAX = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
+J_MAX = np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0])
+GRIPPER_MAX_WIDTH = 0.08  # metres between the fingers, fully open
+
+# A comfortable "ready" pose: EE about 0.5 m in front of the base, pointing down.
+Q_HOME = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 1.9, 0.785398])
+
+# The robot base sits at the world origin; the table top is at TABLE_Z (world z up).
+TABLE_Z = 0.0
+
+
+def panda_urdf_path() -> str:
+    import pybullet_data  # local import: pure data lookup, no physics client
+
+    return os.path.join(pybullet_data.getDataPath(), "franka_panda", "panda.urdf")

@@ -1,0 +1,93 @@
+"""Graph declarations (graphs.yaml): the one source for `skillgen launch` and launch files.
+
+Pure (no rclpy): resolves a named graph to the executables, parameter files and arguments to
+start, and raises a clear UNKNOWN_GRAPH / UNKNOWN_NODE error for names that do not exist.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import yaml
+
+from skillgen_ros.core.errors import SkillGenError
+
+PACKAGE = "skillgen_ros"
+
+
+class UnknownGraphError(SkillGenError):
+    reason = "UNKNOWN_GRAPH"
+
+
+class UnknownNodeError(SkillGenError):
+    reason = "UNKNOWN_NODE"
+
+
+@dataclass(frozen=True)
+class NodeLaunch:
+    exe: str
+    params_file: str | None
+    name: str | None = None
+    args: tuple[str, ...] = field(default_factory=tuple)
+
+    def ros_args(self) -> list[str]:
+        out = ["--ros-args"]
+        if self.params_file:
+            out += ["--params-file", self.params_file]
+        if self.name:
+            out += ["-r", f"__node:={self.name}"]
+        return out
+
+
+def executables() -> list[str]:
+    """The package's executables, from its installed console_scripts entry points."""
+    from importlib.metadata import entry_points
+
+    return sorted(e.name for e in entry_points(group="console_scripts") if e.value.startswith(f"{PACKAGE}."))
+
+
+def node_executables() -> list[str]:
+    return [e for e in executables() if e != "skillgen"]
+
+
+def params_dir() -> Path:
+    """params/ of the source checkout when running from one (edits apply at once), else share/."""
+    src = Path(__file__).resolve().parents[1] / "params"
+    if src.is_dir():
+        return src
+    return Path(os.environ.get("SKILLGEN_SHARE", "")) / "params" if os.environ.get("SKILLGEN_SHARE") else _share_dir() / "params"
+
+
+def _share_dir() -> Path:
+    from ament_index_python.packages import get_package_share_directory
+
+    return Path(get_package_share_directory(PACKAGE))
+
+
+def load_graphs() -> dict:
+    text = resources.files(PACKAGE).joinpath("graphs.yaml").read_text()
+    return yaml.safe_load(text)["graphs"]
+
+
+def graph_names() -> list[str]:
+    return sorted(load_graphs())
+
+
+def load_graph(name: str, params: Path | None = None) -> list[NodeLaunch]:
+    graphs = load_graphs()
+    if name not in graphs:
+        raise UnknownGraphError(f"no graph named '{name}'; known graphs: {', '.join(sorted(graphs))}")
+    known = set(node_executables())
+    pdir = params or params_dir()
+    out = []
+    for entry in graphs[name]["nodes"]:
+        exe = entry["exe"]
+        if exe not in known:
+            raise UnknownNodeError(f"graph '{name}' names node '{exe}', which is not an executable of "
+                                   f"{PACKAGE}; known: {', '.join(sorted(known))}")
+        pfile = pdir / entry.get("params", f"{exe}.yaml")
+        out.append(NodeLaunch(exe=exe, params_file=str(pfile) if pfile.is_file() else None,
+                              name=entry.get("name"), args=tuple(entry.get("args", ()))))
+    return out

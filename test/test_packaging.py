@@ -1,0 +1,79 @@
+"""The package is a correct ament_python package and every executable resolves like `ros2 run`."""
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from ament_index_python.packages import get_package_prefix, get_package_share_directory
+from catkin_pkg.package import parse_package
+
+from skillgen_ros.graphs import graph_names, load_graph, node_executables
+
+REPO = Path(__file__).resolve().parents[1]
+EXPECTED = {"sim_driver", "mock_driver", "perception", "planner", "skill_replay", "datagen", "hsp",
+            "recorder", "player", "teleop"}
+
+
+def test_every_node_executable_is_declared():
+    assert EXPECTED <= set(node_executables())
+
+
+@pytest.mark.parametrize("exe", sorted(EXPECTED))
+def test_ament_index_resolves_executable(exe):
+    # What `ros2 run skillgen_ros <exe>` does: prefix from AMENT_PREFIX_PATH, then lib/<pkg>/<exe>.
+    prefix = Path(get_package_prefix("skillgen_ros"))
+    path = prefix / "lib" / "skillgen_ros" / exe
+    assert path.exists() and os.access(path, os.X_OK), path
+    assert (Path(sys.prefix) / "bin" / exe).exists()
+
+
+def test_interfaces_package_in_ament_index():
+    assert Path(get_package_prefix("skillgen_interfaces")).is_dir()
+    share = Path(get_package_share_directory("skillgen_interfaces"))
+    assert (share / "msg" / "OscTarget.msg").exists()
+
+
+def test_package_xml_is_format_3_ament_python():
+    pkg = parse_package(str(REPO / "package.xml"))
+    assert pkg.package_format == 3
+    assert pkg.get_build_type() == "ament_python"
+    assert "rclpy" in {d.name for d in pkg.exec_depends}
+    iface = parse_package(str(REPO / "msg_defs" / "package.xml"))
+    assert iface.name == "skillgen_interfaces" and iface.get_build_type() == "ament_cmake"
+
+
+def test_standard_messages_are_not_redefined():
+    names = {p.stem for p in (REPO / "msg_defs" / "msg").glob("*.msg")}
+    assert not names & {"PoseStamped", "Pose", "JointState", "PointCloud2", "JointTrajectory", "Image"}
+
+
+@pytest.mark.parametrize("exe", sorted(EXPECTED))
+def test_params_file_per_node_in_ros_form(exe):
+    doc = yaml.safe_load((REPO / "params" / f"{exe}.yaml").read_text())
+    assert list(doc) == [exe] and "ros__parameters" in doc[exe]
+
+
+def test_graphs_resolve_to_known_nodes():
+    for g in graph_names():
+        nodes = load_graph(g)
+        assert nodes and all(n.exe in EXPECTED for n in nodes)
+
+
+def test_launch_file_reads_the_same_graphs():
+    text = (REPO / "launch" / "skillgen.launch.py").read_text()
+    assert "load_graph" in text  # the launch file and `skillgen launch` share one declaration
+
+
+def test_bootstrap_rerun_is_a_noop():
+    # The first run catches up with any edit (e.g. a params file); the second must do nothing, fast.
+    cmd = ["bash", str(REPO / "scripts" / "bootstrap.sh")]
+    assert subprocess.run(cmd, capture_output=True, text=True, timeout=600).returncode == 0
+    t0 = time.monotonic()
+    out = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+    elapsed = time.monotonic() - t0
+    assert out.returncode == 0, out.stderr
+    assert "installing" not in out.stderr and "building" not in out.stderr, out.stderr
+    assert elapsed < 10.0

@@ -1,11 +1,186 @@
-"""datagen node (placeholder until its issue lands)."""
-import sys
+"""datagen node: the user's trigger for generation (`generate` action, `run_attempt` service).
 
-from skillgen_ros.nodes.runtime import not_implemented
+Each attempt runs Algorithm 1 over the graph (see graph_env.RosGraphEnv): reset_scene ->
+estimate_poses -> per skill: plan_to_pose (transit/transfer, retreat+approach, executed on the
+driver) then replay_skill -> task_success -> keep (demo.hdf5) or drop (failed.hdf5, with reason).
+The run loop, dataset, report and video are core code (core/generation/session.py); this node
+maps the action goal onto a RunRequest, streams feedback (attempts, successes, rate, ETA) and can
+record the session through the recorder's services.
+
+Parameters (params/datagen.yaml): demos_dir, output_root, collision_source, record_topics and the
+per-call timeouts (timeout_reset, timeout_perception, timeout_plan, timeout_execute,
+timeout_skill, timeout_state).
+"""
+from __future__ import annotations
+
+import os
+import sys
+import threading
+from pathlib import Path
+
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.node import Node
+
+from skillgen_interfaces.action import Generate
+from skillgen_interfaces.msg import FailureCount
+from skillgen_interfaces.srv import PlanToPose, Recorder, RunAttempt
+from skillgen_ros.core.errors import ParameterError, SkillGenError
+from skillgen_ros.core.generation.session import RunRequest, run_generation, validate_request
+from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
+from skillgen_ros.core.tasks import TASK_NAMES, get_task
+from skillgen_ros.nodes.graph_env import RosGraphEnv
+from skillgen_ros.nodes.runtime import run_node
+
+TIMEOUTS = {"reset": 30.0, "perception": 20.0, "plan": 10.0, "execute": 60.0, "skill": 120.0, "state": 10.0}
+
+
+class DatagenNode(Node):
+    def __init__(self):
+        super().__init__("datagen")
+        self.declare_parameter("demos_dir", "bags")
+        self.declare_parameter("output_root", "out")
+        self.declare_parameter("collision_source", "point_cloud")
+        self.declare_parameter("action_noise", 0.05)
+        for k, v in TIMEOUTS.items():
+            self.declare_parameter(f"timeout_{k}", v)
+        src = str(self.get_parameter("collision_source").value)
+        if src not in ("point_cloud", "scene"):
+            raise ParameterError(f"collision_source must be point_cloud or scene, got {src!r}")
+        timeouts = {k: float(self.get_parameter(f"timeout_{k}").value) for k in TIMEOUTS}
+        if any(v <= 0 for v in timeouts.values()):
+            raise ParameterError(f"timeouts must be > 0, got {timeouts}")
+        self.env = RosGraphEnv(self, timeouts, demos_dir="",
+                               collision_source=PlanToPose.Request.SOURCE_POINT_CLOUD if src == "point_cloud"
+                               else PlanToPose.Request.SOURCE_SCENE)
+        self._busy = threading.Lock()
+        cb = ReentrantCallbackGroup()
+        self.rec_start = self.create_client(Recorder, "recorder/start", callback_group=cb)
+        self.rec_stop = self.create_client(Recorder, "recorder/stop", callback_group=cb)
+        self.server = ActionServer(self, Generate, "generate", self._execute, goal_callback=self._on_goal,
+                                   cancel_callback=lambda _g: CancelResponse.ACCEPT,
+                                   callback_group=MutuallyExclusiveCallbackGroup())
+        self.create_service(RunAttempt, "run_attempt", self._run_attempt, callback_group=MutuallyExclusiveCallbackGroup())
+        self.get_logger().info("datagen ready: action 'generate', service 'run_attempt'")
+
+    # -- request handling
+    def _request(self, g) -> RunRequest:
+        out = g.output_dir or os.path.join(str(self.get_parameter("output_root").value),
+                                           f"{g.task}_{g.variant}_{g.method}_seed{g.seed}")
+        return RunRequest(task=g.task, variant=g.variant or "D0", method=g.method or "skillgen",
+                          attempts=int(getattr(g, "attempts", 1)), target_successes=int(getattr(g, "target_successes", 0)),
+                          seed=int(g.seed), first_index=int(getattr(g, "first_index", getattr(g, "index", 0))),
+                          augment=bool(g.augment),
+                          augment_translation=float(g.augment_translation or 0.08),
+                          augment_rotation_deg=float(g.augment_rotation_deg or 80.0),
+                          action_noise=float(self.get_parameter("action_noise").value),
+                          selection=g.selection or "random", output_dir=out, source_demos=g.source_demos)
+
+    def _demos(self, req: RunRequest):
+        d = req.source_demos or str(Path(str(self.get_parameter("demos_dir").value)) / req.task)
+        paths = expand_bag_paths([d])
+        if not paths:
+            raise SkillGenError(f"no source demo bags under {d}", reason="NO_SOURCE_DEMOS")
+        self.env.demos_dir = d
+        return load_source_demos(paths, get_task(req.task))
+
+    def _on_goal(self, _goal):
+        return GoalResponse.REJECT if self._busy.locked() else GoalResponse.ACCEPT
+
+    def _execute(self, goal_handle):
+        with self._busy:
+            return self._generate(goal_handle)
+
+    def _generate(self, goal_handle):
+        g = goal_handle.request
+        res = Generate.Result()
+        try:
+            req = self._request(g)
+            validate_request(req, TASK_NAMES)
+            demos = self._demos(req)
+        except SkillGenError as e:
+            res.accepted, res.reason, res.message = False, e.reason, str(e.args[0])
+            self.get_logger().error(f"generate rejected: {e}")
+            goal_handle.abort()
+            return res
+        res.accepted = True
+        bag = self._start_bag(req) if g.record_bag else ""
+
+        def progress(p):
+            fb = Generate.Feedback(attempts=p.attempts, successes=p.successes, success_rate=p.rate,
+                                   eta_seconds=p.eta_seconds, last_reason=p.last_reason)
+            goal_handle.publish_feedback(fb)
+
+        def stop():
+            return "CANCELED" if goal_handle.is_cancel_requested else ""
+
+        try:
+            run = run_generation(self.env, demos, get_task(req.task), req, on_progress=progress, should_stop=stop)
+            res.reason = run.stopped_early or "OK"
+            res.message = f"{run.successes}/{run.attempts} attempts succeeded"
+        except SkillGenError as e:  # a request-level failure mid-run: partial dataset stays valid
+            run = None
+            res.reason, res.message = e.reason, f"run ended early: {e.args[0]}"
+            self.get_logger().error(res.message)
+        finally:
+            if bag:
+                self._stop_bag()
+        if run is not None:
+            res.attempts, res.successes = run.attempts, run.successes
+            res.failures = [FailureCount(reason=k, count=v) for k, v in sorted(run.failures.items()) if v]
+            res.dataset_path, res.failed_path, res.report_path = run.dataset_path, run.failed_path, run.report_path
+        res.bag_path = bag
+        if res.reason == "CANCELED":
+            goal_handle.canceled()
+        elif res.reason == "OK":
+            goal_handle.succeed()
+        else:
+            goal_handle.abort()
+        return res
+
+    def _run_attempt(self, request, response):
+        if not self._busy.acquire(blocking=False):
+            response.accepted, response.reason, response.message = False, "BUSY", "a generation run is in progress"
+            return response
+        try:
+            req = self._request(request)
+            req = RunRequest(**{**req.__dict__, "attempts": 1, "first_index": int(request.index)})
+            validate_request(req, TASK_NAMES)
+            run = run_generation(self.env, self._demos(req), get_task(req.task), req, write_report=False)
+            r = run.results[0]
+            response.accepted, response.success = True, r.success
+            response.reason, response.message, response.seconds = r.reason.value, r.message, r.timings.get("total", 0.0)
+        except SkillGenError as e:
+            response.accepted, response.reason, response.message = False, e.reason, str(e.args[0])
+        finally:
+            self._busy.release()
+        return response
+
+    # -- optional session recording through the recorder node
+    def _start_bag(self, req: RunRequest) -> str:
+        path = os.path.join(req.output_dir, "bag")
+        if not self.rec_start.wait_for_service(timeout_sec=5.0):
+            self.get_logger().warning("recorder/start not available; not recording this run")
+            return ""
+        ev = threading.Event()
+        fut = self.rec_start.call_async(Recorder.Request(output=path))
+        fut.add_done_callback(lambda _f: ev.set())
+        ev.wait(10.0)
+        r = fut.result() if fut.done() else None
+        if r is None or not r.success:
+            self.get_logger().warning(f"recorder did not start: {getattr(r, 'message', 'no answer')}")
+            return ""
+        return r.bag_path or path
+
+    def _stop_bag(self) -> None:
+        ev = threading.Event()
+        fut = self.rec_stop.call_async(Recorder.Request())
+        fut.add_done_callback(lambda _f: ev.set())
+        ev.wait(15.0)
 
 
 def main(args=None) -> int:
-    return not_implemented("datagen", "see the issue tracker")
+    return run_node(DatagenNode, args)
 
 
 if __name__ == "__main__":

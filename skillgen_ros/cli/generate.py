@@ -1,0 +1,163 @@
+"""`skillgen generate`: the main job. Starts the generation graph, triggers a run, shows progress.
+
+    skillgen generate                       Square D1, skillgen, 50 attempts through the full graph
+    skillgen generate --task Square --variant D2 --method mimicgen --attempts 200 --seed 3
+    skillgen generate --in-process          same algorithm, no ROS graph (SimGenerationEnv)
+
+Graph mode launches the `datagen` graph (sim_driver in lockstep, perception in estimate mode,
+planner, skill_replay, datagen, recorder) as separate processes, sends a Generate goal through
+SkillGenClient, draws a progress bar from the feedback, prints the success rate and where the
+dataset, bag and report are, and stops the graph. Ctrl-C cancels the run cleanly.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from skillgen_ros.core.errors import SkillGenError
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="skillgen generate", description=__doc__.split("\n\n")[0])
+    p.add_argument("--task", default="Square")
+    p.add_argument("--variant", default="D1")
+    p.add_argument("--method", default="skillgen", help="skillgen, mimicgen or replay_noise")
+    p.add_argument("--attempts", type=int, default=50)
+    p.add_argument("--target-successes", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--first-index", type=int, default=0)
+    p.add_argument("--augment", action="store_true", help="initiation augmentation (t=0.08 m, r=80 deg)")
+    p.add_argument("--selection", default="random", help="random (paper) or nearest (MimicGen)")
+    p.add_argument("--source-demos", default="", help="directory of source bags (default bags/<task>)")
+    p.add_argument("--output", default="", help="output directory (default out/<task>_<variant>_<method>_seed<seed>)")
+    p.add_argument("--no-bag", action="store_true", help="do not record the session to MCAP")
+    p.add_argument("--in-process", action="store_true", help="run without the ROS graph")
+    p.add_argument("--perception", default="estimate", choices=["estimate", "ground_truth"],
+                   help="in-process only; the graph uses params/perception.yaml")
+    p.add_argument("--startup-timeout", type=float, default=60.0)
+    return p
+
+
+def _output(a) -> str:
+    """--output, else a fresh out/<task>_<variant>_<method>_seed<seed>_<time> (runs never overwrite)."""
+    if a.output:
+        return a.output
+    if not hasattr(a, "_auto_output"):
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        a._auto_output = os.path.join("out", f"{a.task}_{a.variant}_{a.method}{'_ia' if a.augment else ''}"
+                                             f"_seed{a.seed}_{stamp}")
+    return a._auto_output
+
+
+def _print_result(attempts, successes, failures: dict, paths: dict) -> None:
+    rate = successes / attempts if attempts else 0.0
+    print(f"\nsuccess rate: {successes}/{attempts} = {100 * rate:.1f}%")
+    if failures:
+        print("failures: " + ", ".join(f"{k} {v}" for k, v in sorted(failures.items())))
+    for k, v in paths.items():
+        if v:
+            print(f"{k:8s} {v}")
+
+
+def run_in_process(a) -> int:
+    from tqdm import tqdm
+
+    from skillgen_ros.core.generation.session import RunRequest, run_generation, validate_request
+    from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
+    from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
+    from skillgen_ros.core.tasks import TASK_NAMES, get_task
+
+    req = RunRequest(task=a.task, variant=a.variant, method=a.method, attempts=a.attempts,
+                     target_successes=a.target_successes, seed=a.seed, first_index=a.first_index,
+                     augment=a.augment, selection=a.selection, output_dir=_output(a), source_demos=a.source_demos)
+    validate_request(req, TASK_NAMES)
+    paths = expand_bag_paths([a.source_demos or os.path.join("bags", a.task)])
+    demos = load_source_demos(paths, get_task(a.task)) if paths else []
+    env = SimGenerationEnv(SimEnvConfig(perception=a.perception, seed=a.seed))
+    bar = tqdm(total=a.attempts, unit="attempt", dynamic_ncols=True)
+
+    def progress(p):
+        bar.update(p.attempts - bar.n)
+        bar.set_postfix(success=f"{p.successes}/{p.attempts}", rate=f"{100 * p.rate:.0f}%")
+
+    try:
+        run = run_generation(env, demos, get_task(a.task), req, on_progress=progress)
+    finally:
+        bar.close()
+        env.close()
+    _print_result(run.attempts, run.successes, {k: v for k, v in run.failures.items() if v},
+                  {"dataset": run.dataset_path, "failed": run.failed_path, "report": run.report_path,
+                   "video": run.video_path})
+    return 0
+
+
+def run_graph(a) -> int:
+    from tqdm import tqdm
+
+    from skillgen_ros.client import SkillGenClient
+    from skillgen_ros import rosenv
+
+    env = rosenv.ros_environment(dict(os.environ))
+    graph = subprocess.Popen([sys.executable, "-m", "skillgen_ros.cli.main", "launch", "datagen"], env=env,
+                             start_new_session=True)
+    client = None
+    try:
+        client = SkillGenClient()
+        if not client.wait_for_server(a.startup_timeout):
+            raise SkillGenError("the generation graph did not come up (datagen 'generate' action missing)",
+                                reason="GRAPH_NOT_READY")
+        ok = client.generate(task=a.task, variant=a.variant, method=a.method, attempts=a.attempts,
+                             target_successes=a.target_successes, seed=a.seed, first_index=a.first_index,
+                             augment=a.augment, augment_translation=0.08, augment_rotation_deg=80.0,
+                             selection=a.selection, source_demos=a.source_demos, output_dir=_output(a),
+                             record_bag=not a.no_bag)
+        if not ok:
+            raise SkillGenError("datagen rejected the goal (busy)", reason="REJECTED")
+        bar = tqdm(total=a.attempts, unit="attempt", dynamic_ncols=True)
+        try:
+            while not client.is_done():
+                fb = client.feedback()
+                if fb is not None:
+                    bar.update(fb.attempts - bar.n)
+                    bar.set_postfix(success=f"{fb.successes}/{fb.attempts}", rate=f"{100 * fb.success_rate:.0f}%",
+                                    eta=f"{fb.eta_seconds:.0f}s")
+                if graph.poll() is not None:
+                    raise SkillGenError(f"the graph stopped (exit {graph.returncode})", reason="GRAPH_DIED")
+                time.sleep(0.2)
+        except KeyboardInterrupt:
+            client.cancel()
+            print("\ncanceling ...", file=sys.stderr)
+        finally:
+            bar.close()
+        res = client.result(timeout=120)
+        if not res.accepted:
+            raise SkillGenError(res.message, reason=res.reason)
+        _print_result(res.attempts, res.successes, {f.reason: f.count for f in res.failures},
+                      {"dataset": res.dataset_path, "failed": res.failed_path, "report": res.report_path,
+                       "bag": res.bag_path})
+        if res.reason not in ("OK", "CANCELED"):
+            print(f"run ended early: {res.reason}: {res.message}", file=sys.stderr)
+            return 1
+        return 0
+    finally:
+        if client is not None:
+            client.close()
+        if graph.poll() is None:
+            os.killpg(graph.pid, signal.SIGINT)
+            try:
+                graph.wait(30)
+            except subprocess.TimeoutExpired:
+                os.killpg(graph.pid, signal.SIGKILL)
+
+
+def main(argv: list[str]) -> int:
+    a = _parser().parse_args(argv)
+    try:
+        return run_in_process(a) if a.in_process else run_graph(a)
+    except SkillGenError as e:
+        print(str(e), file=sys.stderr)
+        return 2

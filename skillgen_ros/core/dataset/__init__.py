@@ -1,0 +1,1 @@
+"""Generated datasets: robomimic-layout HDF5, run reports and videos."""

@@ -1,0 +1,1 @@
+"""Demonstration generation (the paper's Algorithm 1) over an environment interface."""

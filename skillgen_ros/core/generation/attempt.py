@@ -1,0 +1,373 @@
+"""One demonstration-generation attempt: the paper's Algorithm 1 over a `GenerationEnv`.
+
+skillgen:  per skill i - estimate T_W^{O_i'}, pick a source demo, T_W^{E_0'} = T_W^{O_i'} T_O^{E_0},
+           (optionally perturb it), plan + execute a transit/transfer motion there, (replay the
+           recovery segment), then replay T_W^{A_t'} = T_W^{O_i'} T_O^{A_t} as noisy delta actions.
+mimicgen:  the same skill replay, but segments are stitched by MimicGen's linear interpolation
+           (interpolation_steps + fixed_steps) from the current EE pose; no planner, no collisions.
+replay_noise: the whole source demo replayed with action noise from its own initial scene.
+Then the task success check decides whether the attempt is kept. The env does the acting; this
+module does the bookkeeping and the math, and records every step for the dataset.
+"""
+from __future__ import annotations
+
+import enum
+import time
+from dataclasses import dataclass, field
+from typing import Mapping, Protocol, Sequence
+
+import numpy as np
+
+from ..errors import InvalidInputError, SkillGenError
+from ..geometry import Pose
+from ..skills.actions import ActionScale, make_action, pose_to_delta_action
+from ..skills.augmentation import AugmentationConfig, interpolate_poses, perturb_initiation
+from ..skills.replay import plan_replay
+from ..skills.protocols import SkillLike, TaskLike
+from ..skills.segment import SourceDemo
+from ..skills.transform import matrix_to_array
+from .episode import Episode, EpisodeRecorder, Observation, StepLabel
+from .seeds import attempt_rng, scene_seed
+from .selection import make_strategy
+
+METHODS = ("skillgen", "mimicgen", "replay_noise")
+
+
+class FailureReason(str, enum.Enum):
+    OK = "OK"
+    PERCEPTION_FAILED = "PERCEPTION_FAILED"
+    IK_FAILED = "IK_FAILED"
+    PLAN_FAILED = "PLAN_FAILED"
+    EXECUTION_COLLISION = "EXECUTION_COLLISION"
+    SKILL_FAILED = "SKILL_FAILED"
+    TASK_FAILED = "TASK_FAILED"
+    TIMEOUT = "TIMEOUT"
+
+
+class GenerationEnv(Protocol):
+    """What an attempt needs from the world (in-process sim or the ROS graph behind clients).
+
+    plan_and_execute returns the planner's status (a str or an enum whose name is OK/SUCCESS,
+    IK_FAILED, PLAN_FAILED, COLLISION, TIMEOUT, ...) and the observation after each executed
+    control step. step() runs one 20 Hz OSC step towards an absolute target and returns the
+    observation after it. An optional `skill_succeeded(skill_index) -> bool` is used if present.
+    """
+
+    def reset(self, task: str, variant: str, seed: int): ...
+    def observe(self) -> Observation: ...
+    def estimate_poses(self) -> Mapping[str, Pose]: ...
+    def current_ee_pose(self) -> Pose: ...
+    def current_q(self) -> np.ndarray: ...
+    def plan_and_execute(self, target: Pose, mode: str, attached: str | None) -> tuple[object, Sequence[Observation]]: ...
+    def step(self, target: Pose, gripper: float) -> Observation: ...
+    def task_success(self) -> bool: ...
+    def collided(self) -> bool: ...
+
+
+@dataclass(frozen=True)
+class GenerationConfig:
+    variant: str = "D0"
+    action_noise: float = 0.05  # sigma on normalized delta-pose actions (paper: 0.05)
+    selection: str = "random"
+    selection_params: dict = field(default_factory=dict)
+    augment: bool = False
+    augmentation: AugmentationConfig = AugmentationConfig()
+    scale: ActionScale = ActionScale()
+    interpolation_steps: int = 5  # MimicGen's num_interpolation_steps
+    fixed_steps: int = 0  # MimicGen's num_fixed_steps
+    max_steps: int = 3000  # total control steps before TIMEOUT
+    time_limit_s: float | None = None  # wall time before TIMEOUT
+    check_collisions: bool = True  # fail planned motions that the env reports as colliding
+
+    def __post_init__(self):
+        if self.action_noise < 0 or self.interpolation_steps < 0 or self.fixed_steps < 0 or self.max_steps < 1:
+            raise InvalidInputError(f"invalid generation config {self}", reason="INVALID_PARAMETER")
+
+
+@dataclass(frozen=True)
+class AttemptResult:
+    index: int
+    method: str
+    success: bool
+    reason: FailureReason
+    message: str
+    scene_seed: int
+    source_demos: tuple[int, ...]  # per skill (replay_noise: the one demo)
+    episode: Episode
+    timings: dict  # stage -> seconds: reset, perception, motion, skill, success, total
+
+
+# Planner statuses (core/planning PlanStatus: PLAN_TIMEOUT, GOAL_IN_COLLISION, ... -> PLAN_FAILED) and
+# executor outcomes: a trajectory the driver could not track counts as an execution failure.
+_STATUS = {"OK": None, "SUCCESS": None, "SUCCEEDED": None, "SUCCESSFUL": None, "IK_FAILED": FailureReason.IK_FAILED,
+           "EXECUTION_FAILED": FailureReason.EXECUTION_COLLISION, "ABORTED": FailureReason.EXECUTION_COLLISION,
+           "NO_IK": FailureReason.IK_FAILED, "IK": FailureReason.IK_FAILED,
+           "COLLISION": FailureReason.EXECUTION_COLLISION, "EXECUTION_COLLISION": FailureReason.EXECUTION_COLLISION,
+           "TIMEOUT": FailureReason.TIMEOUT, "TIMED_OUT": FailureReason.TIMEOUT}
+
+
+def motion_failure(status) -> FailureReason | None:
+    """Planner/executor status -> None on success, else the attempt's failure reason (PLAN_FAILED default)."""
+    name = str(getattr(status, "name", status)).upper()
+    return _STATUS.get(name, FailureReason.PLAN_FAILED)
+
+
+class _Fail(Exception):
+    def __init__(self, reason: FailureReason, message: str):
+        super().__init__(message)
+        self.reason = reason
+
+
+class _Attempt:
+    """State of one attempt in flight; methods follow Algorithm 1's steps."""
+
+    def __init__(self, env: GenerationEnv, demos: Sequence[SourceDemo], task: TaskLike, method: str,
+                 index: int, seed: int, config: GenerationConfig):
+        self.env, self.demos, self.task, self.method, self.cfg = env, demos, task, method, config
+        self.index = index
+        self.scene_seed = scene_seed(seed, index)
+        self.rng_select = attempt_rng(seed, index, "selection")
+        self.rng_noise = attempt_rng(seed, index, "noise")
+        self.rng_aug = attempt_rng(seed, index, "augmentation")
+        self.strategy = make_strategy(config.selection, **config.selection_params)
+        self.rec = EpisodeRecorder()
+        self.timings = {k: 0.0 for k in ("reset", "perception", "motion", "skill", "success")}
+        self.t0 = time.perf_counter()
+        self.obs: Observation | None = None
+        self.gripper = -1.0  # last gripper command; the hand starts open
+        self.last_target: np.ndarray | None = None  # last noise-free pose target streamed
+        self.chosen: list[int] = []
+
+    # -- bookkeeping
+    def _budget(self) -> None:
+        if len(self.rec) >= self.cfg.max_steps:
+            raise _Fail(FailureReason.TIMEOUT, f"attempt exceeded {self.cfg.max_steps} control steps")
+        if self.cfg.time_limit_s is not None and time.perf_counter() - self.t0 > self.cfg.time_limit_s:
+            raise _Fail(FailureReason.TIMEOUT, f"attempt exceeded {self.cfg.time_limit_s} s")
+
+    def _step(self, target: np.ndarray, gripper: float, sigma: float, label: StepLabel) -> None:
+        """One OSC step toward `target`: normalized delta action (+ noise), executed and recorded."""
+        self._budget()
+        current = self.obs.ee_matrix()
+        action, commanded = make_action(target, current, gripper, sigma, self.rng_noise, self.cfg.scale)
+        try:
+            nxt = self.env.step(Pose.from_matrix(commanded), float(gripper))
+        except (SkillGenError, TimeoutError) as e:
+            raise _Fail(FailureReason.SKILL_FAILED, f"control step failed: {e}") from e
+        self.rec.add(self.obs, action, commanded, gripper, label)
+        self.obs, self.gripper, self.last_target = nxt, float(gripper), np.asarray(target, float)
+
+    def _timed(self, stage: str, t: float) -> None:
+        self.timings[stage] += time.perf_counter() - t
+
+    # -- Algorithm 1 pieces
+    def reset(self, variant: str, seed: int) -> None:
+        t = time.perf_counter()
+        self.env.reset(self.task.name, variant, seed)
+        self.obs = self.env.observe()
+        self._timed("reset", t)
+
+    def estimate(self, skill: SkillLike) -> np.ndarray:
+        t = time.perf_counter()
+        try:
+            poses = self.env.estimate_poses()
+        except (SkillGenError, TimeoutError) as e:
+            raise _Fail(FailureReason.PERCEPTION_FAILED, f"pose estimation failed: {e}") from e
+        finally:
+            self._timed("perception", t)
+        if skill.object_id not in poses:
+            raise _Fail(FailureReason.PERCEPTION_FAILED, f"no pose for skill {skill.index} object {skill.object_id!r}")
+        p = poses[skill.object_id]
+        return p.matrix() if isinstance(p, Pose) else np.asarray(p, float)
+
+    def select(self, skill: SkillLike, T_W_O: np.ndarray) -> int:
+        prev = self.chosen[-1] if self.chosen else None
+        j = self.strategy.select(self.demos, skill.index, T_W_O, prev, self.rng_select)
+        self.chosen.append(j)
+        return j
+
+    def plan_motion(self, skill: SkillLike, target: np.ndarray, label: StepLabel) -> None:
+        """Transit/transfer motion to the initiation pose; executed steps are recorded as mp steps."""
+        self._budget()
+        t = time.perf_counter()
+        hint = getattr(self.env, "set_skill_object", None)
+        if hint is not None:  # lets the env allow hand/object contact in approach (paper, App. planning)
+            hint(skill.object_id)
+        try:
+            status, steps = self.env.plan_and_execute(Pose.from_matrix(target), skill.mode, skill.attached_object)
+        except TimeoutError as e:
+            raise _Fail(FailureReason.TIMEOUT, f"motion to skill {skill.index} timed out: {e}") from e
+        except SkillGenError as e:
+            raise _Fail(motion_failure(e.reason) or FailureReason.PLAN_FAILED, f"motion to skill {skill.index}: {e}") from e
+        finally:
+            self._timed("motion", t)
+        for nxt in steps:  # action of an mp step: the delta to where the tracked trajectory went
+            a = np.concatenate([pose_to_delta_action(nxt.ee_matrix(), self.obs.ee_matrix(), self.cfg.scale),
+                                [self.gripper]])
+            self.rec.add(self.obs, a, nxt.ee_pose, self.gripper, label)
+            self.obs = nxt
+        reason = motion_failure(status)
+        if reason is not None:
+            raise _Fail(reason, f"motion to skill {skill.index} ({skill.mode}) failed: {getattr(status, 'name', status)}")
+        if self.cfg.check_collisions and self.env.collided():
+            raise _Fail(FailureReason.EXECUTION_COLLISION, f"collision during the motion to skill {skill.index}")
+        if not steps:
+            self.obs = self.env.observe()
+        self._budget()
+
+    def replay(self, targets: np.ndarray, gripper: np.ndarray, label: StepLabel, sigma: float) -> None:
+        t = time.perf_counter()
+        try:
+            for T, g in zip(targets, gripper):
+                self._step(T, float(g), sigma, label)
+        finally:
+            self._timed("skill", t)
+
+    def check_skill(self, skill: SkillLike) -> None:
+        fn = getattr(self.env, "skill_succeeded", None)
+        if fn is not None and not fn(skill.index):
+            raise _Fail(FailureReason.SKILL_FAILED, f"skill {skill.index} ({skill.name}) did not succeed")
+
+    # -- methods
+    def run_skill_based(self) -> None:
+        """Algorithm 1: for each skill, estimate -> select -> reach the segment start -> replay."""
+        self.reset(self.cfg.variant, self.scene_seed)
+        for skill in sorted(self.task.skills, key=lambda s: s.index):
+            T_W_O = self.estimate(skill)  # T_W^{O_i'}
+            j = self.select(skill, T_W_O)
+            seg = self.demos[j].skill(skill.index)
+            if self.method == "skillgen":
+                self.skillgen_skill(skill, seg, j, T_W_O)
+            else:
+                self.mimicgen_skill(skill, seg, j, T_W_O)
+            self.check_skill(skill)
+
+    def skillgen_skill(self, skill: SkillLike, seg, j: int, T_W_O: np.ndarray) -> None:
+        """Plan to T_W^{E_0'} (perturbed when augmenting), recover, replay T_W^{O'} T_O^{A_t}."""
+        init = seg.initiation_in_world(T_W_O)
+        goal = perturb_initiation(init, self.cfg.augmentation, self.rng_aug) if self.cfg.augment else init
+        goal7 = matrix_to_array(goal)
+        self.plan_motion(skill, goal, StepLabel(True, skill.index, j, goal7))
+        if hasattr(self.env, "replay_skill"):
+            return self.remote_skill(skill, j, T_W_O, goal7)
+        cmds = plan_replay(seg, T_W_O, self.obs.ee_matrix(), self.cfg.augment, self.cfg.augmentation)
+        t = time.perf_counter()
+        try:
+            for T, g, rec in zip(cmds.targets, cmds.gripper, cmds.recovery):
+                sigma = 0.0 if rec else self.cfg.action_noise  # recovery poses are planned, not demonstrated
+                self._step(T, float(g), sigma, StepLabel(False, skill.index, j, goal7, bool(rec)))
+        finally:
+            self._timed("skill", t)
+
+    def remote_skill(self, skill: SkillLike, j: int, T_W_O: np.ndarray, goal7: np.ndarray) -> None:
+        """Graph mode: the skill_replay node streams the same plan_replay + make_action steps and
+        returns what it executed; they are recorded exactly as local steps would be."""
+        self._budget()
+        t = time.perf_counter()
+        seed = int(self.rng_noise.integers(2**63 - 1))
+        try:
+            steps, ok, reason, message = self.env.replay_skill(skill.index, j, T_W_O, self.cfg.action_noise,
+                                                               self.cfg.augment, seed)
+        except (SkillGenError, TimeoutError) as e:
+            raise _Fail(FailureReason.TIMEOUT if getattr(e, "reason", "") == "TIMEOUT" else FailureReason.SKILL_FAILED,
+                        f"skill {skill.index} replay: {e}") from e
+        finally:
+            self._timed("skill", t)
+        objects = dict(self.obs.object_poses)
+        for k in range(len(steps["actions"])):
+            obs = Observation(ee_pose=steps["ee_poses"][k], gripper=np.full(2, steps["gripper_widths"][k] / 2),
+                              joint_positions=steps["joint_positions"][k], object_poses=objects)
+            a = steps["actions"][k]
+            self.rec.add(obs, a, steps["actions_abs"][k][:7], float(steps["actions_abs"][k][7]),
+                         StepLabel(False, skill.index, j, goal7, bool(steps["recovery"][k])))
+            self.gripper = float(steps["actions_abs"][k][7])
+        self.obs = self.env.observe()
+        if not ok:
+            raise _Fail(FailureReason.TIMEOUT if reason == "TIMEOUT" else FailureReason.SKILL_FAILED,
+                        f"skill {skill.index} replay failed: {reason}: {message}")
+        self._budget()
+
+    def mimicgen_skill(self, skill: SkillLike, seg, j: int, T_W_O: np.ndarray) -> None:
+        """MimicGen's merge: one step holding the start pose, interpolation_steps poses plus the first
+        transformed target, fixed_steps holding it, then the rest of the segment. As in MimicGen's
+        default (interpolate_from_last_target_pose), later skills start from the last target."""
+        cmds = plan_replay(seg, T_W_O)
+        first = cmds.targets[0]
+        goal7 = matrix_to_array(first)
+        start = self.last_target if self.last_target is not None else self.obs.ee_matrix()
+        path = np.concatenate([start[None], interpolate_poses(start, first, self.cfg.interpolation_steps + 1),
+                               np.repeat(first[None], self.cfg.fixed_steps, axis=0)])
+        grip = np.concatenate([[self.gripper], np.full(len(path) - 1, cmds.gripper[0])])
+        t = time.perf_counter()
+        try:
+            for T, g in zip(path, grip):  # no noise during interpolation (MimicGen's default)
+                self._step(T, float(g), 0.0, StepLabel(True, skill.index, j, goal7))
+        finally:
+            self._timed("motion", t)
+        self.replay(cmds.targets[1:], cmds.gripper[1:], StepLabel(False, skill.index, j, goal7), self.cfg.action_noise)
+
+    def run_replay_noise(self) -> None:
+        j = int(self.rng_select.integers(len(self.demos)))
+        demo = self.demos[j]
+        self.chosen.append(j)
+        self.scene_seed = int(demo.scene_seed)
+        self.reset(demo.variant, int(demo.scene_seed))
+        skill_of = np.full(demo.num_steps, -1)
+        mp = np.ones(demo.num_steps, bool)
+        init = {}
+        for s in demo.skills:
+            skill_of[s.start_step:s.end_step] = s.index
+            mp[s.start_step:s.end_step] = False
+            init[s.index] = matrix_to_array(demo.ee_poses[s.start_step])
+        for m in demo.motions:
+            if m.next_skill is not None:
+                skill_of[m.start_step:m.end_step] = m.next_skill
+        t = time.perf_counter()
+        try:
+            for k in range(demo.num_steps):
+                si = int(skill_of[k])
+                lb = StepLabel(bool(mp[k]), si, j, init.get(si, matrix_to_array(demo.ee_poses[0])))
+                self._step(demo.action_poses[k], float(demo.gripper[k]), self.cfg.action_noise, lb)
+        finally:
+            self._timed("skill", t)
+
+
+def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: TaskLike, method: str,
+                index: int, seed: int, config: GenerationConfig = GenerationConfig()) -> AttemptResult:
+    """Run attempt `index` of a run seeded `seed`; never raises for in-attempt failures.
+
+    Bad requests (unknown method, no source demos, a demo lacking a skill) raise SkillGenError
+    before anything moves; failures while acting come back as `AttemptResult.reason`.
+    """
+    if method not in METHODS:
+        raise InvalidInputError(f"unknown method {method!r}; known: {list(METHODS)}", reason="UNKNOWN_METHOD")
+    if not source_demos:
+        raise InvalidInputError("no source demos given", reason="NO_SOURCE_DEMOS")
+    if method == "replay_noise":
+        for d in source_demos:
+            if d.scene_seed is None:
+                raise InvalidInputError(f"{d.source}: demo {d.name} has no scene seed, so Replay-Noise cannot "
+                                        "reset to its initial state", reason="NO_INITIAL_STATE")
+    else:
+        for d in source_demos:
+            for sk in task.skills:
+                d.skill(sk.index)  # raises ANNOTATION_MISSING_SKILL naming the demo
+    a = _Attempt(env, source_demos, task, method, index, seed, config)
+    reason, message = FailureReason.OK, "task succeeded"
+    try:
+        if method == "replay_noise":
+            a.run_replay_noise()
+        else:
+            a.run_skill_based()
+        t = time.perf_counter()
+        ok = bool(env.task_success())
+        a._timed("success", t)
+        if not ok:
+            reason, message = FailureReason.TASK_FAILED, "all skills ran but the task success check failed"
+    except _Fail as f:
+        reason, message = f.reason, str(f)
+    a.timings["total"] = time.perf_counter() - a.t0
+    success = reason is FailureReason.OK
+    return AttemptResult(index=index, method=method, success=success, reason=reason, message=message,
+                         scene_seed=a.scene_seed,
+                         source_demos=tuple(a.chosen), episode=a.rec.episode(success), timings=a.timings)

@@ -1,0 +1,214 @@
+"""In-process GenerationEnv: SimWorld + MotionPlanner + perception in one Python process.
+
+The same Algorithm 1 (attempt.py) runs over this env or over the ROS graph (nodes/datagen.py);
+this one is the baseline that measures the graph's overhead and the throughput ceiling, and it
+is what shards of a large run use. Perception is explicit: "estimate" runs the model-based
+pipeline on the front camera's cloud, "ground_truth" reads the sim's true poses (an ablation,
+never a silent fallback). Collision geometry for planning comes from the scene's object parts
+placed at the perceived poses ("scene") or from the camera cloud ("cloud").
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InvalidInputError, SkillGenError
+from ..geometry import Pose
+from ..planning.collision import AttachedObject, Box, CollisionModel
+from ..planning.ik import IKSolver
+from ..planning.kinematics import PandaKinematics
+from ..planning.planner import Mode, MotionPlanner, PlanStatus
+from ..sim.camera import CameraConfig
+from ..sim.world import SimWorld
+from ..tasks.spec import ObjectSpec
+from .episode import Observation
+
+PERCEPTION_MODES = ("estimate", "ground_truth")
+COLLISION_SOURCES = ("scene", "cloud")
+
+
+@dataclass(frozen=True)
+class SimEnvConfig:
+    perception: str = "estimate"
+    collision: str = "scene"
+    plan_timeout: float = 2.0
+    images: bool = False  # record 84x84 front and wrist RGB in observations
+    image_size: int = 84
+    camera_width: int = 320  # perception camera resolution (estimate mode / cloud collisions)
+    camera_height: int = 240
+    depth_noise: float = 0.001
+    seed: int = 0
+
+    def __post_init__(self):
+        if self.perception not in PERCEPTION_MODES:
+            raise InvalidInputError(f"perception must be one of {PERCEPTION_MODES}, got {self.perception!r}",
+                                    reason="INVALID_PARAMETER")
+        if self.collision not in COLLISION_SOURCES:
+            raise InvalidInputError(f"collision must be one of {COLLISION_SOURCES}, got {self.collision!r}",
+                                    reason="INVALID_PARAMETER")
+
+
+def object_boxes(obj: ObjectSpec, pose: Pose) -> list[Box]:
+    """Planner boxes for an object: one per primitive part (cylinders by their bounding box)."""
+    T = pose.matrix()
+    parts = obj.parts or ()
+    if not parts:
+        return [Box(obj.id, T, np.asarray(obj.half_extents))]
+    out = []
+    for k, part in enumerate(parts):
+        Tp = np.eye(4)
+        Tp[:3, :3] = Pose(part.position, part.quaternion).rotation.as_matrix()
+        Tp[:3, 3] = part.position
+        h = part.size if part.kind == "box" else (part.size[0], part.size[0], part.size[1])
+        out.append(Box(obj.id, T @ Tp, np.asarray(h, float)))
+    return out
+
+
+class SimGenerationEnv:
+    """GenerationEnv (see attempt.GenerationEnv) over one in-process SimWorld."""
+
+    def __init__(self, config: SimEnvConfig = SimEnvConfig(), world: SimWorld | None = None):
+        self.cfg = config
+        cams = []
+        if config.perception == "estimate" or config.collision == "cloud" or config.images:
+            cams.append(CameraConfig("front", config.camera_width, config.camera_height,
+                                     noise_base=config.depth_noise))
+        if config.images:
+            cams.append(CameraConfig("wrist", config.image_size, config.image_size))
+        self.world = world or SimWorld(cameras=tuple(cams))
+        self.kin = PandaKinematics()
+        self.cm = CollisionModel(self.kin)
+        self.planner = MotionPlanner(self.kin, IKSolver(self.kin, rng=np.random.default_rng(config.seed)), self.cm,
+                                     seed=config.seed)
+        self.scene = None
+        self._estimates: dict[str, Pose] = {}
+        self._collided = False
+        self._models = None
+
+    # -- GenerationEnv
+    def reset(self, task: str, variant: str, seed: int):
+        self.scene = self.world.reset(task, variant, seed)
+        self._estimates = {}
+        self._collided = False
+        self._models = None
+        return self.scene
+
+    def observe(self) -> Observation:
+        w = self.world
+        images = {}
+        if self.cfg.images:
+            images = {"front": _resize(w.render("front").rgb, self.cfg.image_size),
+                      "wrist": w.render("wrist").rgb}
+        return Observation(ee_pose=w.ee_pose(), gripper=w.finger_positions(), joint_positions=w.joint_positions(),
+                           object_poses=dict(self._estimates), images=images)
+
+    def estimate_poses(self) -> dict[str, Pose]:
+        if self.cfg.perception == "ground_truth":
+            self._estimates = self.world.object_poses()
+            return dict(self._estimates)
+        from ..perception.models import models_for_objects
+        from ..perception.pipeline import estimate_poses
+
+        if self._models is None:
+            self._models = models_for_objects([o for o in self.scene.objects if o.id != "obstacle"])
+        frame = self.world.render("front")
+        res = estimate_poses(frame.valid_points(), self._models, camera_position=frame.T_world_camera[:3, 3],
+                             object_ids=self._required_ids())
+        if not res.ok:
+            raise SkillGenError(f"perception: {res.status.name}: {res.message}", reason="PERCEPTION_FAILED")
+        self._estimates = {k: v.pose for k, v in res.poses.items()}
+        self._obstacle_cloud = res.obstacles
+        return dict(self._estimates)
+
+    def _required_ids(self):
+        # Once an object is in the hand, the camera may not see it; only require objects on the table.
+        return [o.id for o in self.scene.objects if o.id != "obstacle" and not self._held(o.id)]
+
+    def _held(self, oid: str) -> bool:
+        return self.world.is_grasping() and any(c.body == oid for c in self.world.robot_contacts([oid]))
+
+    def current_ee_pose(self) -> Pose:
+        return self.world.ee_pose()
+
+    def current_q(self) -> np.ndarray:
+        return self.world.joint_positions()
+
+    def _planning_scene(self, skill_object: str | None, attached: str | None):
+        poses = dict(self.world.object_poses()) if self.cfg.perception == "ground_truth" else dict(self._estimates)
+        if self.cfg.collision == "cloud":
+            frame = self.world.render("front")
+            self.cm.set_boxes(())
+            att = self._attachment(attached, poses)
+            self.cm.set_point_cloud(frame.valid_points(), self_filter_q=self.world.joint_positions(), attached=att)
+            return att
+        boxes = []
+        for o in self.scene.objects:
+            if o.id == attached:
+                continue
+            pose = poses.get(o.id) or self.scene.poses.get(o.id)
+            if o.id == "obstacle" and self.cfg.perception != "ground_truth":
+                pose = self.scene.poses[o.id]  # scene geometry mode: the fixture map is known
+            boxes += object_boxes(o, pose)
+        self.cm.set_boxes(boxes)
+        self.cm.set_point_cloud(np.empty((0, 3)))
+        return self._attachment(attached, poses)
+
+    def _attachment(self, attached: str | None, poses) -> AttachedObject | None:
+        if not attached:
+            return None
+        obj = next(o for o in self.scene.objects if o.id == attached)
+        # Where the object is in the hand: from the live sim pose (the hand holds it now).
+        T_obj = self.world.object_poses()[attached].matrix()
+        T_ee_obj = np.linalg.inv(self.world.ee_pose().matrix()) @ T_obj
+        return AttachedObject.from_box(attached, obj.half_extents, T_ee_obj)
+
+    def plan_and_execute(self, target: Pose, mode: str, attached: str | None):
+        skill_object = self._next_object
+        att = self._planning_scene(skill_object, attached if mode == "transfer" else None)
+        res = self.planner.plan(self.world.joint_positions(), target, Mode(mode), attached=att,
+                                manipulated=skill_object if mode == "transit" else None,
+                                start_support="table", goal_support=skill_object,
+                                timeout=self.cfg.plan_timeout)
+        self.last_plan = res
+        if res.status is not PlanStatus.SUCCESS:
+            return res.status.name, []
+        tr = res.trajectory
+        observations = []
+        others = [o.id for o in self.scene.objects if o.id not in (skill_object, attached)]
+        w = self.world
+        w.start_trajectory([f"panda_joint{i}" for i in range(1, 8)], tr.times, tr.positions, tr.velocities)
+        while True:
+            _, _, done = w.step_trajectory()
+            if others and w.robot_in_collision_with(others):
+                self._collided = True
+            observations.append(self.observe())
+            if done is not None:
+                break
+        return ("SUCCESS" if done.code.name == "SUCCESSFUL" else "EXECUTION_FAILED"), observations
+
+    def step(self, target: Pose, gripper: float) -> Observation:
+        self.world.step(target, gripper)
+        return self.observe()
+
+    def task_success(self) -> bool:
+        return self.world.task_success()
+
+    def collided(self) -> bool:
+        c, self._collided = self._collided, False
+        return c
+
+    # The attempt tells the env which object the next skill manipulates (for allowed contacts).
+    _next_object: str | None = None
+
+    def set_skill_object(self, object_id: str | None) -> None:
+        self._next_object = object_id
+
+    def close(self) -> None:
+        self.world.close()
+
+
+def _resize(rgb: np.ndarray, size: int) -> np.ndarray:
+    import cv2
+
+    return cv2.resize(np.asarray(rgb, np.uint8), (size, size), interpolation=cv2.INTER_AREA)

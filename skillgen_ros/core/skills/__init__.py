@@ -1,0 +1,1 @@
+"""Source demos as the paper defines them: annotated skill segments stored in object frames."""

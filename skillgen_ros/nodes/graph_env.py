@@ -1,0 +1,238 @@
+"""GenerationEnv over the ROS graph: the datagen node's view of driver, perception, planner, replay.
+
+Algorithm 1 (core/generation/attempt.py) calls these methods; each maps to one interface:
+reset -> `reset_scene`, estimate_poses -> `estimate_poses`, plan_and_execute -> `plan_to_pose`
+(execute=true: the planner runs the trajectory on the driver), replay_skill -> the `replay_skill`
+action, task_success -> `task_success`. Observations come from `joint_states`, `ee_pose` and
+`gripper_state`; object poses in observations are the latest estimates (never ground truth).
+Motion-planner steps are recorded from the planned trajectory sampled at the control rate
+(commanded states, FK through pinocchio); skill steps are the measured states skill_replay saw.
+Every call has a timeout; a node that does not answer becomes a failure with a reason
+(PERCEPTION_FAILED, PLAN_FAILED, SKILL_FAILED, TIMEOUT) instead of a hang.
+"""
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+from geometry_msgs.msg import PoseStamped
+from rclpy.action import ActionClient
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+from skillgen_interfaces.action import ReplaySkill
+from skillgen_interfaces.msg import GripperState, OscTarget
+from skillgen_interfaces.srv import EstimatePoses, PlanToPose, ResetScene, TaskSuccess
+from skillgen_ros.core.errors import SkillGenError
+from skillgen_ros.core.generation.episode import Observation
+from skillgen_ros.core.geometry import Pose
+from skillgen_ros.core.planning.kinematics import PandaKinematics
+from skillgen_ros.nodes import convert
+
+
+class GraphCallError(SkillGenError):
+    reason = "TIMEOUT"
+
+
+class RosGraphEnv:
+    """Implements attempt.GenerationEnv (+ the optional replay_skill hook) with ROS clients on `node`."""
+
+    def __init__(self, node: Node, timeouts: dict, demos_dir: str = "", action_noise: float = 0.05,
+                 collision_source: int = PlanToPose.Request.SOURCE_POINT_CLOUD, control_hz: float = 20.0):
+        self.node = node
+        self.t = dict(timeouts)
+        self.demos_dir = demos_dir
+        self.collision_source = collision_source
+        self.dt = 1.0 / control_hz
+        group = ReentrantCallbackGroup()
+        self.reset_cli = node.create_client(ResetScene, "reset_scene", callback_group=group)
+        self.success_cli = node.create_client(TaskSuccess, "task_success", callback_group=group)
+        self.estimate_cli = node.create_client(EstimatePoses, "estimate_poses", callback_group=group)
+        self.plan_cli = node.create_client(PlanToPose, "plan_to_pose", callback_group=group)
+        self.replay_ac = ActionClient(node, ReplaySkill, "replay_skill", callback_group=group)
+        self._lock = threading.RLock()
+        self._cond = threading.Condition(self._lock)
+        self._ee_count = 0
+        self.osc_pub = node.create_publisher(OscTarget, "osc_target", 10)
+        self._ee: PoseStamped | None = None
+        self._q = np.zeros(7)
+        self._fingers = np.zeros(2)
+        node.create_subscription(PoseStamped, "ee_pose", self._on_ee, 10, callback_group=group)
+        node.create_subscription(JointState, "joint_states", self._on_joints, 10, callback_group=group)
+        node.create_subscription(GripperState, "gripper_state", self._on_gripper, 10, callback_group=group)
+        self.kin = PandaKinematics()
+        self.task = ""
+        self.scene_objects = []
+        self._estimates: dict[str, Pose] = {}
+        self._skill_object: str | None = None
+
+    # -- subscriptions
+    def _on_ee(self, m):
+        with self._cond:
+            self._ee = m
+            self._ee_count += 1
+            self._cond.notify_all()
+
+    def _on_joints(self, m):
+        names = list(m.name)
+        pos = dict(zip(names, m.position))
+        with self._lock:
+            if all(f"panda_joint{i}" in pos for i in range(1, 8)):
+                self._q = np.array([pos[f"panda_joint{i}"] for i in range(1, 8)])
+            if "panda_finger_joint1" in pos and "panda_finger_joint2" in pos:
+                self._fingers = np.array([pos["panda_finger_joint1"], pos["panda_finger_joint2"]])
+
+    def _on_gripper(self, m):
+        if not np.any(self._fingers):
+            with self._lock:
+                self._fingers = np.array([m.width / 2, m.width / 2])
+
+    # -- plumbing
+    def _call(self, client, request, timeout: float, what: str, reason: str):
+        if not client.wait_for_service(timeout_sec=min(timeout, 5.0)):
+            raise GraphCallError(f"{what}: service {client.srv_name} is not available", reason=reason)
+        fut = client.call_async(request)
+        done = threading.Event()
+        fut.add_done_callback(lambda _f: done.set())
+        if not done.wait(timeout):
+            client.remove_pending_request(fut)
+            raise GraphCallError(f"{what}: no answer from {client.srv_name} within {timeout:.1f} s", reason=reason)
+        if fut.exception() is not None:
+            raise GraphCallError(f"{what}: {fut.exception()}", reason=reason)
+        return fut.result()
+
+    def wait_for_state(self, timeout: float) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            with self._lock:
+                if self._ee is not None:
+                    return True
+            time.sleep(0.02)
+        return False
+
+    # -- GenerationEnv
+    def reset(self, task: str, variant: str, seed: int):
+        req = ResetScene.Request(task=task, variant=variant, seed=int(seed))
+        resp = self._call(self.reset_cli, req, self.t["reset"], "reset_scene", "TIMEOUT")
+        if not resp.success:
+            raise SkillGenError(f"reset_scene: {resp.message}", reason=resp.reason_code or "RESET_FAILED")
+        self.task = task
+        self.scene_objects = list(resp.objects)
+        self._estimates = {}
+        with self._lock:
+            self._ee = None
+        if not self.wait_for_state(self.t["state"]):
+            raise GraphCallError("no ee_pose from the driver after reset", reason="TIMEOUT")
+        return resp
+
+    def observe(self) -> Observation:
+        with self._lock:
+            ee, q, f = self._ee, self._q.copy(), self._fingers.copy()
+        return Observation(ee_pose=convert.pose_from_msg(ee.pose), gripper=f, joint_positions=q,
+                           object_poses=dict(self._estimates))
+
+    def estimate_poses(self) -> dict[str, Pose]:
+        resp = self._call(self.estimate_cli, EstimatePoses.Request(), self.t["perception"], "estimate_poses",
+                          "PERCEPTION_FAILED")
+        if resp.status != EstimatePoses.Response.OK and not resp.poses:
+            raise SkillGenError(f"estimate_poses: {resp.status_name}: {resp.message}", reason="PERCEPTION_FAILED")
+        for p in resp.poses:
+            self._estimates[p.id] = convert.pose_from_msg(p.pose)
+        return dict(self._estimates)
+
+    def current_ee_pose(self) -> Pose:
+        return self.observe().ee_pose
+
+    def current_q(self) -> np.ndarray:
+        with self._lock:
+            return self._q.copy()
+
+    def set_skill_object(self, object_id: str | None) -> None:
+        self._skill_object = object_id
+
+    def plan_and_execute(self, target: Pose, mode: str, attached: str | None):
+        req = PlanToPose.Request()
+        req.target = convert.pose_stamped(target, "world", self.node.get_clock().now().to_msg())
+        req.mode = PlanToPose.Request.TRANSFER if mode == "transfer" else PlanToPose.Request.TRANSIT
+        req.attached_object = attached or ""
+        req.collision_source = self.collision_source
+        req.timeout = float(self.t["plan"])
+        req.execute = True
+        req.start_positions = [float(v) for v in self.current_q()]
+        resp = self._call(self.plan_cli, req, self.t["plan"] + self.t["execute"], "plan_to_pose", "PLAN_FAILED")
+        status = resp.status_name or str(resp.status)
+        if resp.status != PlanToPose.Response.SUCCESS:
+            return status, []
+        _, times, pos, _ = convert.trajectory_from_msg(resp.trajectory)
+        obs = []
+        fingers = self.observe().gripper
+        for t in np.arange(self.dt, times[-1] + 1e-9, self.dt):
+            q = np.array([np.interp(t, times, pos[:, j]) for j in range(pos.shape[1])])
+            obs.append(Observation(ee_pose=Pose.from_matrix(self.kin.fk(q)), gripper=fingers, joint_positions=q,
+                                   object_poses=dict(self._estimates)))
+        if obs:
+            obs[-1] = self.observe()  # the measured state where execution ended
+        return status, obs
+
+    def replay_skill(self, skill_index: int, demo_index: int, T_W_O: np.ndarray, sigma: float,
+                     recovery: bool, seed: int):
+        """The skill_replay action: returns (steps, ok, reason, message); steps as arrays."""
+        if not self.replay_ac.wait_for_server(timeout_sec=5.0):
+            raise GraphCallError("replay_skill action server is not available", reason="SKILL_FAILED")
+        goal = ReplaySkill.Goal(skill_index=int(skill_index), source_demo=int(demo_index),
+                                source_demos=self.demos_dir, task=self.task, selection="random",
+                                action_noise=float(sigma), recovery=bool(recovery), seed=int(seed))
+        goal.object_pose = convert.pose_to_msg(Pose.from_matrix(T_W_O))
+        result = self._wait_action(self.replay_ac.send_goal_async(goal), self.t["skill"])
+        r = result.result
+        n = int(r.steps)
+        steps = {
+            "actions": np.asarray(r.actions, float).reshape(n, 7),
+            "actions_abs": np.asarray(r.actions_abs, float).reshape(n, 8),
+            "ee_poses": np.asarray(r.ee_poses, float).reshape(n, 7),
+            "joint_positions": np.asarray(r.joint_positions, float).reshape(n, 7),
+            "gripper_widths": np.asarray(r.gripper_widths, float).reshape(n),
+            "recovery": np.asarray(r.recovery_steps, bool).reshape(n),
+        }
+        return steps, bool(r.success), r.reason, r.message
+
+    def _wait_action(self, send_future, timeout: float):
+        end = time.monotonic() + timeout
+        ev = threading.Event()
+        send_future.add_done_callback(lambda _f: ev.set())
+        if not ev.wait(max(0.0, end - time.monotonic())):
+            raise GraphCallError("replay_skill goal was not answered", reason="SKILL_FAILED")
+        handle = send_future.result()
+        if not handle.accepted:
+            raise GraphCallError("replay_skill goal rejected (busy?)", reason="SKILL_FAILED")
+        rf = handle.get_result_async()
+        ev2 = threading.Event()
+        rf.add_done_callback(lambda _f: ev2.set())
+        if not ev2.wait(max(0.0, end - time.monotonic())):
+            handle.cancel_goal_async()
+            raise GraphCallError(f"replay_skill did not finish within {timeout:.0f} s", reason="TIMEOUT")
+        return rf.result()
+
+    def step(self, target: Pose, gripper: float) -> Observation:
+        """One OSC command (MimicGen's interpolation steps); waits for the driver's next ee_pose."""
+        with self._cond:
+            count = self._ee_count
+        msg = OscTarget()
+        msg.header.frame_id = "world"
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        msg.pose = convert.pose_to_msg(target)
+        msg.gripper = float(gripper)
+        self.osc_pub.publish(msg)
+        with self._cond:
+            if not self._cond.wait_for(lambda: self._ee_count > count, self.t["state"]):
+                raise GraphCallError("driver did not step after an osc_target", reason="TIMEOUT")
+        return self.observe()
+
+    def task_success(self) -> bool:
+        resp = self._call(self.success_cli, TaskSuccess.Request(), self.t["reset"], "task_success", "TIMEOUT")
+        return bool(resp.success)
+
+    def collided(self) -> bool:
+        return False  # the planner's EXECUTION_FAILED status carries execution problems

@@ -1,0 +1,212 @@
+"""Algorithm 1 (run_attempt) over a fake environment, per method; seeds; selection strategies."""
+import numpy as np
+import pytest
+from _generation_fakes import FakeTask, FakeWorld, make_source_demos
+
+from skillgen_ros.core.errors import InvalidInputError, SkillGenError
+from skillgen_ros.core.generation.attempt import FailureReason, GenerationConfig, motion_failure, run_attempt
+from skillgen_ros.core.generation.seeds import attempt_rng, scene_seed, shard_indices
+from skillgen_ros.core.generation.selection import NearestNeighborObject, make_strategy, pose_distance
+from skillgen_ros.core.skills.augmentation import AugmentationConfig
+
+TASK = FakeTask()
+CFG = GenerationConfig(variant="D1")
+
+
+@pytest.fixture(scope="module")
+def demos():
+    return make_source_demos(3)
+
+
+@pytest.mark.parametrize("method", ["skillgen", "mimicgen", "replay_noise"])
+def test_methods_succeed_on_fake_world(demos, method):
+    results = [run_attempt(FakeWorld(), demos, TASK, method, i, 11, CFG) for i in range(4)]
+    assert all(r.success and r.reason is FailureReason.OK for r in results), [r.message for r in results]
+    for r in results:
+        ep = r.episode
+        T = ep.num_samples
+        assert ep.actions.shape == (T, 7) and ep.actions_abs.shape == (T, 8) and ep.states.shape[0] == T
+        assert np.abs(ep.actions[:, :6]).max() <= 1.0
+        assert ep.rewards[-1] == 1.0 and ep.dones[-1] == 1 and ep.dones[:-1].sum() == 0
+        # replay_noise labels the motion after the last skill -1 (it leads to no skill)
+        assert {0, 1} <= set(np.unique(ep.labels["skill_index"]).tolist()) <= {-1, 0, 1}
+        assert {"robot0_eef_pos", "robot0_eef_quat", "object", "cube_pose", "plate_pose"} <= set(ep.obs)
+        assert r.timings["total"] > 0
+    assert len({r.scene_seed for r in results}) > 1 or method == "replay_noise"
+
+
+def test_skillgen_labels_and_env_calls(demos):
+    env = FakeWorld()
+    r = run_attempt(env, demos, TASK, "skillgen", 0, 5, CFG)
+    lab = r.episode.labels
+    # mp steps (10 per planned motion in the fake) precede each skill's replay
+    mp = lab["mp_step"].astype(bool)
+    assert mp.sum() == 20 and mp[:10].all() and not mp[10]
+    assert env.calls[0] == f"reset:D1:{scene_seed(5, 0)}"
+    assert env.calls[1:] == ["estimate", "plan:transit:None", "estimate", "plan:transfer:cube"]
+    # random-per-episode: one source demo for the whole episode
+    assert len(set(r.source_demos)) == 1 and (lab["source_demo"] == r.source_demos[0]).all()
+    # the initiation target label is where the planned motion ended (the fake tracks exactly)
+    first_skill = np.flatnonzero(~mp)[0]
+    np.testing.assert_allclose(lab["initiation_target"][first_skill][:3], r.episode.obs["robot0_eef_pos"][first_skill],
+                               atol=1e-9)
+    # skill steps replay the source gripper actions unchanged
+    d = demos[r.source_demos[0]]
+    skill0 = ~mp & (lab["skill_index"] == 0)
+    np.testing.assert_array_equal(r.episode.actions[skill0, 6], d.skills[0].gripper)
+    np.testing.assert_array_equal(r.episode.actions_abs[:, 7], r.episode.actions[:, 6])
+
+
+def test_noise_changes_pose_dims_only(demos):
+    quiet = run_attempt(FakeWorld(), demos, TASK, "skillgen", 3, 5, GenerationConfig(variant="D1", action_noise=0.0))
+    noisy = run_attempt(FakeWorld(), demos, TASK, "skillgen", 3, 5, CFG)
+    assert quiet.source_demos == noisy.source_demos and quiet.episode.num_samples == noisy.episode.num_samples
+    skill = noisy.episode.labels["mp_step"] == 0
+    np.testing.assert_array_equal(quiet.episode.actions[:, 6], noisy.episode.actions[:, 6])
+    diff = noisy.episode.actions[skill, :6] - quiet.episode.actions[skill, :6]
+    assert 0.02 < diff.std() < 0.1
+
+
+def test_augmentation_adds_recovery(demos):
+    cfg = GenerationConfig(variant="D1", augment=True, augmentation=AugmentationConfig(0.03, 30.0))
+    r = run_attempt(FakeWorld(), demos, TASK, "skillgen", 1, 5, cfg)
+    assert r.success, r.message
+    aug = r.episode.labels["augmented"].astype(bool)
+    assert aug.any() and not (aug & r.episode.labels["mp_step"].astype(bool)).any()
+    # the recovery starts at the perturbed target (the label) and ends at the source initiation pose
+    first = np.flatnonzero(aug)[0]
+    np.testing.assert_allclose(r.episode.obs["robot0_eef_pos"][first], r.episode.labels["initiation_target"][first][:3],
+                               atol=1e-9)
+
+
+def test_mimicgen_interpolation_steps(demos):
+    r = run_attempt(FakeWorld(), demos, TASK, "mimicgen", 0, 5, GenerationConfig(variant="D1", fixed_steps=2))
+    mp = r.episode.labels["mp_step"].astype(bool)
+    d = demos[r.source_demos[0]]
+    assert mp.sum() == 2 * (1 + 5 + 1 + 2)  # start pose, 5 interpolation, the segment start, 2 fixed; per skill
+    # the second skill's interpolation starts from the first skill's last (noise-free) target
+    from skillgen_ros.core.geometry import Pose
+    second = np.flatnonzero(mp)[9]
+    T_cube = Pose.from_array(r.episode.obs["cube_pose"][0]).matrix()  # the cube sits still until grasped
+    expected = (T_cube @ d.skills[0].actions_in_object[-1])[:3, 3]
+    np.testing.assert_allclose(r.episode.actions_abs[second, :3], expected, atol=1e-9)
+    assert r.episode.num_samples == mp.sum() + sum(s.num_steps - 1 for s in d.skills)
+
+
+def test_replay_noise_uses_source_initial_state(demos):
+    env = FakeWorld()
+    r = run_attempt(env, demos, TASK, "replay_noise", 0, 5, CFG)
+    j = r.source_demos[0]
+    assert env.calls == [f"reset:D0:{demos[j].scene_seed}"] and r.scene_seed == demos[j].scene_seed
+    assert r.episode.num_samples == demos[j].num_steps
+
+
+@pytest.mark.parametrize("world,reason", [
+    (dict(plan_status="PLAN_FAILED"), FailureReason.PLAN_FAILED),
+    (dict(plan_status="IK_FAILED"), FailureReason.IK_FAILED),
+    (dict(plan_status="TIMEOUT"), FailureReason.TIMEOUT),
+    (dict(plan_status="NO_PATH_FOUND"), FailureReason.PLAN_FAILED),
+    (dict(collide=True), FailureReason.EXECUTION_COLLISION),
+    (dict(perception_fails=True), FailureReason.PERCEPTION_FAILED),
+])
+def test_failure_reasons(demos, world, reason):
+    r = run_attempt(FakeWorld(**world), demos, TASK, "skillgen", 0, 5, CFG)
+    assert not r.success and r.reason is reason and r.message
+
+
+def test_timeout_task_failed_skill_failed(demos):
+    r = run_attempt(FakeWorld(), demos, TASK, "skillgen", 0, 5, GenerationConfig(variant="D1", max_steps=15))
+    assert r.reason is FailureReason.TIMEOUT and r.episode.num_samples == 15
+
+    class NoSuccess(FakeWorld):
+        def task_success(self):
+            return False
+
+    assert run_attempt(NoSuccess(), demos, TASK, "mimicgen", 0, 5, CFG).reason is FailureReason.TASK_FAILED
+
+    class SkillCheck(FakeWorld):
+        def skill_succeeded(self, i):
+            return i != 1
+
+    assert run_attempt(SkillCheck(), demos, TASK, "skillgen", 0, 5, CFG).reason is FailureReason.SKILL_FAILED
+
+    class Crashes(FakeWorld):
+        def estimate_poses(self):
+            raise SkillGenError("perception node gone", reason="SERVICE_UNAVAILABLE")
+
+    assert run_attempt(Crashes(), demos, TASK, "skillgen", 0, 5, CFG).reason is FailureReason.PERCEPTION_FAILED
+
+
+def test_bad_requests(demos):
+    with pytest.raises(InvalidInputError) as e:
+        run_attempt(FakeWorld(), demos, TASK, "teleport", 0, 5, CFG)
+    assert e.value.reason == "UNKNOWN_METHOD"
+    with pytest.raises(InvalidInputError) as e:
+        run_attempt(FakeWorld(), [], TASK, "skillgen", 0, 5, CFG)
+    assert e.value.reason == "NO_SOURCE_DEMOS"
+    with pytest.raises(InvalidInputError) as e:
+        run_attempt(FakeWorld(), demos, TASK, "skillgen", 0, 5, GenerationConfig(selection="best"))
+    assert e.value.reason == "UNKNOWN_SELECTION"
+    with pytest.raises(InvalidInputError):
+        run_attempt(FakeWorld(), demos, TASK, "skillgen", -1, 5, CFG)
+    import dataclasses
+    no_seed = [dataclasses.replace(demos[0], scene_seed=None)]
+    with pytest.raises(InvalidInputError) as e:
+        run_attempt(FakeWorld(), no_seed, TASK, "replay_noise", 0, 5, CFG)
+    assert e.value.reason == "NO_INITIAL_STATE"
+
+
+def test_same_seed_same_attempt(demos):
+    a = run_attempt(FakeWorld(), demos, TASK, "skillgen", 2, 9, CFG)
+    b = run_attempt(FakeWorld(), demos, TASK, "skillgen", 2, 9, CFG)
+    c = run_attempt(FakeWorld(), demos, TASK, "skillgen", 2, 10, CFG)
+    np.testing.assert_array_equal(a.episode.actions, b.episode.actions)
+    np.testing.assert_array_equal(a.episode.states, b.episode.states)
+    assert a.scene_seed == b.scene_seed != c.scene_seed
+
+
+def test_seeds_independent_and_shardable():
+    assert scene_seed(1, 5) == scene_seed(1, 5) and scene_seed(1, 5) != scene_seed(1, 6)
+    assert 0 <= scene_seed(2**40, 3) < 2**31
+    x = attempt_rng(1, 5, "noise").standard_normal(3)
+    np.testing.assert_array_equal(x, attempt_rng(1, 5, "noise").standard_normal(3))
+    assert not np.allclose(x, attempt_rng(1, 5, "selection").standard_normal(3))
+    shards = [list(shard_indices(10, 7, s, 3)) for s in range(3)]
+    assert sorted(sum(shards, [])) == list(range(10, 17))
+    with pytest.raises(InvalidInputError):
+        attempt_rng(1, 5, "bogus")
+
+
+def test_motion_status_mapping():
+    import enum
+
+    class S(enum.Enum):
+        SUCCESS = 0
+        IK_FAILED = 1
+
+    assert motion_failure(S.SUCCESS) is None and motion_failure(S.IK_FAILED) is FailureReason.IK_FAILED
+    assert motion_failure("collision") is FailureReason.EXECUTION_COLLISION
+    PlanStatus = pytest.importorskip("skillgen_ros.core.planning.planner").PlanStatus
+    assert motion_failure(PlanStatus.SUCCESS) is None
+    assert motion_failure(PlanStatus.PLAN_TIMEOUT) is FailureReason.PLAN_FAILED  # no plan in budget, not an attempt timeout
+    assert motion_failure(PlanStatus.IK_FAILED) is FailureReason.IK_FAILED
+    assert motion_failure("EXECUTION_FAILED") is FailureReason.EXECUTION_COLLISION
+
+
+def test_selection_strategies(demos):
+    rng = np.random.default_rng(0)
+    rnd = make_strategy("random")
+    assert rnd.select(demos, 1, np.eye(4), 2, rng) == 2
+    picks = {rnd.select(demos, 0, np.eye(4), None, rng) for _ in range(50)}
+    assert picks == {0, 1, 2}
+    nn = make_strategy("nearest_neighbor", nn_k=1)
+    for j, d in enumerate(demos):
+        assert nn.select(demos, 0, d.skills[0].object_pose, None, rng) == j
+    nn2 = NearestNeighborObject(nn_k=2)
+    target = demos[0].skills[0].object_pose
+    dist = [pose_distance(d.skills[0].object_pose, target) for d in demos]
+    allowed = set(np.argsort(dist)[:2].tolist())
+    assert {nn2.select(demos, 0, target, None, rng) for _ in range(30)} <= allowed
+    with pytest.raises(InvalidInputError) as e:
+        make_strategy("nearest_neighbor", k=3)
+    assert e.value.reason == "INVALID_PARAMETER"

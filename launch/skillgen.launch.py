@@ -4,6 +4,7 @@
 
 The graph comes from skillgen_ros/graphs.yaml, the same declaration `skillgen launch` reads.
 """
+import yaml
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
@@ -17,7 +18,9 @@ def _nodes(context, *args, **kwargs):
     nodes = []
     for n in load_graph(graph):
         nodes.append(Node(package="skillgen_ros", executable=n.exe, name=n.name, arguments=list(n.args),
-                          parameters=[n.params_file] if n.params_file else [], output="screen",
+                          parameters=([n.params_file] if n.params_file else [])
+                          + ([{k: yaml.safe_load(v) for k, v in n.parameters}] if n.parameters else []),
+                          output="screen",
                           additional_env={"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}))
     return nodes
 

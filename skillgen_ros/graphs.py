@@ -31,11 +31,14 @@ class NodeLaunch:
     params_file: str | None
     name: str | None = None
     args: tuple[str, ...] = field(default_factory=tuple)
+    parameters: tuple[tuple[str, str], ...] = field(default_factory=tuple)  # graph-specific overrides
 
     def ros_args(self) -> list[str]:
         out = ["--ros-args"]
         if self.params_file:
             out += ["--params-file", self.params_file]
+        for k, v in self.parameters:
+            out += ["-p", f"{k}:={v}"]
         if self.name:
             out += ["-r", f"__node:={self.name}"]
         return out
@@ -88,6 +91,16 @@ def load_graph(name: str, params: Path | None = None) -> list[NodeLaunch]:
             raise UnknownNodeError(f"graph '{name}' names node '{exe}', which is not an executable of "
                                    f"{PACKAGE}; known: {', '.join(sorted(known))}")
         pfile = pdir / entry.get("params", f"{exe}.yaml")
+        overrides = tuple((str(k), _ros_value(v)) for k, v in (entry.get("parameters") or {}).items())
         out.append(NodeLaunch(exe=exe, params_file=str(pfile) if pfile.is_file() else None,
-                              name=entry.get("name"), args=tuple(entry.get("args", ()))))
+                              name=entry.get("name"), args=tuple(entry.get("args", ())), parameters=overrides))
     return out
+
+
+def _ros_value(v) -> str:
+    """A parameter value as `-p name:=value` wants it (YAML flow syntax)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_ros_value(x) for x in v) + "]"
+    return str(v)

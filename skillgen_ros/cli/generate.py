@@ -107,7 +107,12 @@ def run_graph(a) -> int:
     client = None
     try:
         client = SkillGenClient()
-        if not client.wait_for_server(a.startup_timeout):
+        end = time.monotonic() + a.startup_timeout
+        while not client.wait_for_server(1.0) and time.monotonic() < end:
+            if graph.poll() is not None:
+                raise SkillGenError(f"the generation graph stopped during start-up (exit {graph.returncode})",
+                                    reason="GRAPH_DIED")
+        if not client.wait_for_server(0.1):
             raise SkillGenError("the generation graph did not come up (datagen 'generate' action missing)",
                                 reason="GRAPH_NOT_READY")
         ok = client.generate(task=a.task, variant=a.variant, method=a.method, attempts=a.attempts,
@@ -147,7 +152,7 @@ def run_graph(a) -> int:
         if client is not None:
             client.close()
         if graph.poll() is None:
-            os.killpg(graph.pid, signal.SIGINT)
+            graph.send_signal(signal.SIGINT)  # the launcher forwards it to every node once
             try:
                 graph.wait(30)
             except subprocess.TimeoutExpired:

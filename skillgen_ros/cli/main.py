@@ -42,6 +42,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
+    if argv and argv[0] in DELEGATED:  # the subcommand's own parser sees every remaining word
+        return _delegate(argv[0], argv[1:])
     ns = _parser().parse_args(argv)
     try:
         if ns.cmd == "run":
@@ -59,15 +61,25 @@ def main(argv: list[str] | None = None) -> int:
             for name, g in sorted(load_graphs().items()):
                 print(f"{name:14s} {' '.join(n['exe'] for n in g['nodes']):60s} {g.get('description', '')}")
             return 0
-        module, _ = DELEGATED[ns.cmd]
-        try:
-            mod = importlib.import_module(module)
-        except ModuleNotFoundError as e:
-            if e.name == module:
-                print(f"NOT_IMPLEMENTED: 'skillgen {ns.cmd}' is not available yet", file=sys.stderr)
-                return 3
-            raise
-        return int(mod.main(ns.rest) or 0)
+        return _delegate(ns.cmd, ns.rest)
+    except SkillGenError as e:
+        print(str(e), file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+def _delegate(cmd: str, rest: list[str]) -> int:
+    module, _ = DELEGATED[cmd]
+    try:
+        mod = importlib.import_module(module)
+    except ModuleNotFoundError as e:
+        if e.name == module:
+            print(f"NOT_IMPLEMENTED: 'skillgen {cmd}' is not available yet", file=sys.stderr)
+            return 3
+        raise
+    try:
+        return int(mod.main(rest) or 0)
     except SkillGenError as e:
         print(str(e), file=sys.stderr)
         return 2

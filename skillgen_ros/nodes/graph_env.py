@@ -20,13 +20,16 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 
 from skillgen_interfaces.action import ReplaySkill
-from skillgen_interfaces.msg import GripperState, OscTarget
+from skillgen_interfaces.msg import GripperState, OscTarget, SceneObject
 from skillgen_interfaces.srv import EstimatePoses, PlanToPose, ResetScene, TaskSuccess
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
+from skillgen_ros.core.generation.grasp import GraspTracker, grasp_step
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.nodes import convert
@@ -56,6 +59,8 @@ class RosGraphEnv:
         self._cond = threading.Condition(self._lock)
         self._ee_count = 0
         self.osc_pub = node.create_publisher(OscTarget, "osc_target", 10)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.task_pub = node.create_publisher(String, "perception/set_task", latched)
         self._ee: PoseStamped | None = None
         self._q = np.zeros(7)
         self._fingers = np.zeros(2)
@@ -67,6 +72,7 @@ class RosGraphEnv:
         self.scene_objects = []
         self._estimates: dict[str, Pose] = {}
         self._skill_object: str | None = None
+        self.grasps = GraspTracker()
 
     # -- subscriptions
     def _on_ee(self, m):
@@ -120,7 +126,9 @@ class RosGraphEnv:
             raise SkillGenError(f"reset_scene: {resp.message}", reason=resp.reason_code or "RESET_FAILED")
         self.task = task
         self.scene_objects = list(resp.objects)
+        self.task_pub.publish(String(data=f"{task}/{variant}"))
         self._estimates = {}
+        self.grasps.clear()
         with self._lock:
             self._ee = None
         if not self.wait_for_state(self.t["state"]):
@@ -134,12 +142,15 @@ class RosGraphEnv:
                            object_poses=dict(self._estimates))
 
     def estimate_poses(self) -> dict[str, Pose]:
-        resp = self._call(self.estimate_cli, EstimatePoses.Request(), self.t["perception"], "estimate_poses",
-                          "PERCEPTION_FAILED")
+        held = self.grasps.holding()
+        required = [o.id for o in self.scene_objects if not o.is_fixture or o.id != "obstacle"]
+        req = EstimatePoses.Request(object_ids=[i for i in required if i != held and i != "obstacle"])
+        resp = self._call(self.estimate_cli, req, self.t["perception"], "estimate_poses", "PERCEPTION_FAILED")
         if resp.status != EstimatePoses.Response.OK and not resp.poses:
             raise SkillGenError(f"estimate_poses: {resp.status_name}: {resp.message}", reason="PERCEPTION_FAILED")
         for p in resp.poses:
-            self._estimates[p.id] = convert.pose_from_msg(p.pose)
+            if p.id != held:  # the hand occludes a held object; the grasp tracker knows where it is
+                self._estimates[p.id] = convert.pose_from_msg(p.pose)
         return dict(self._estimates)
 
     def current_ee_pose(self) -> Pose:
@@ -148,6 +159,23 @@ class RosGraphEnv:
     def current_q(self) -> np.ndarray:
         with self._lock:
             return self._q.copy()
+
+    def _scene_for_planner(self):
+        """The reset's scene objects placed at the latest estimated poses (the planner's boxes locate
+        the attached object and the allowed contacts; obstacles come from the cloud)."""
+        out = []
+        ee = self.observe().ee_matrix()
+        held = self.grasps.holding()
+        for o in self.scene_objects:
+            m = SceneObject(id=o.id, type=o.type, mesh_uri=o.mesh_uri, half_extents=list(o.half_extents),
+                            is_fixture=o.is_fixture)
+            est = self.grasps.pose_now(o.id, ee) if o.id == held else self._estimates.get(o.id)
+            if est is not None:
+                m.has_pose, m.pose = True, convert.pose_to_msg(est)
+            elif o.has_pose and self.collision_source == PlanToPose.Request.SOURCE_SCENE:
+                m.has_pose, m.pose = True, o.pose
+            out.append(m)
+        return out
 
     def set_skill_object(self, object_id: str | None) -> None:
         self._skill_object = object_id
@@ -161,6 +189,8 @@ class RosGraphEnv:
         req.timeout = float(self.t["plan"])
         req.execute = True
         req.start_positions = [float(v) for v in self.current_q()]
+        req.objects = self._scene_for_planner()
+        req.manipulated_object = self._skill_object or ""
         resp = self._call(self.plan_cli, req, self.t["plan"] + self.t["execute"], "plan_to_pose", "PLAN_FAILED")
         status = resp.status_name or str(resp.status)
         if resp.status != PlanToPose.Response.SUCCESS:
@@ -196,7 +226,18 @@ class RosGraphEnv:
             "gripper_widths": np.asarray(r.gripper_widths, float).reshape(n),
             "recovery": np.asarray(r.recovery_steps, bool).reshape(n),
         }
+        self._track_grasp(steps)
         return steps, bool(r.success), r.reason, r.message
+
+    def _track_grasp(self, steps) -> None:
+        """After a skill: if the hand closed on the skill's object, remember it rigidly attached."""
+        k = grasp_step(steps["actions_abs"][:, 7])
+        obj = self._skill_object
+        if k is None:
+            self.grasps.released()
+        elif obj in self._estimates and k < len(steps["ee_poses"]):
+            k_settled = min(k + 5, len(steps["ee_poses"]) - 1)  # the fingers need a few periods to close
+            self.grasps.grasped(obj, self._estimates[obj].matrix(), Pose.from_array(steps["ee_poses"][k_settled]).matrix())
 
     def _wait_action(self, send_future, timeout: float):
         end = time.monotonic() + timeout

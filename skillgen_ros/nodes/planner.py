@@ -1,11 +1,313 @@
-"""planner node (placeholder until its issue lands)."""
-import sys
+"""planner node: plan_to_pose (retreat -> transit/transfer -> approach), optional execution.
 
-from skillgen_ros.nodes.runtime import not_implemented
+Interfaces (relative names):
+- service `plan_to_pose` (skillgen_interfaces/srv/PlanToPose)
+- subscribes `joint_states` (start configuration when the request gives none),
+  `camera/front/points` + `camera/wrist/points` (sensor QoS) and `perception/obstacles`
+  (reliable, transient local) for SOURCE_POINT_CLOUD; the perception cloud wins when present.
+- publishes `planner/path_markers` (visualization_msgs/MarkerArray, latched) for Foxglove
+- action client `execute_trajectory` (skillgen_interfaces/action/ExecuteTrajectory)
+
+Scene geometry: the request carries `objects` (SceneObject[] as reset_scene returns them). A
+non-empty list replaces the node's scene; an empty one reuses the latest. With SOURCE_SCENE the
+boxes are the obstacles; with SOURCE_POINT_CLOUD the cloud is (an empty cloud = no obstacles;
+robot points are filtered at the start configuration; the space below observed points is filled
+down to the table), and the boxes only locate the attached object and the allowed contacts. The
+table is always the half-space z < 0. Clouds must be in the world frame ("", "world" or
+"panda_link0": the base is at the world origin).
+Allowed contacts: in TRANSIT the hand may touch `manipulated_object` on the approach and, on the
+retreat, the object whose box contains the start EE position (just released); in TRANSFER the
+held object (`attached_object`, attached as spheres filling its box) may touch the box right
+below it at the start and at the goal (or the table). Bad requests are answered with a status
+code; the node keeps serving.
+Callbacks: the service runs in its own mutually exclusive group; subscriptions and the action
+client in a reentrant group, so state keeps updating while a request plans or executes.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+import traceback
+
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.action import ActionClient
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.node import Node
+from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy, qos_profile_sensor_data
+from geometry_msgs.msg import Point
+from sensor_msgs.msg import JointState, PointCloud2
+from visualization_msgs.msg import Marker, MarkerArray
+
+from skillgen_interfaces.action import ExecuteTrajectory
+from skillgen_interfaces.msg import PhaseTiming
+from skillgen_interfaces.srv import PlanToPose
+from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
+from skillgen_ros.core.geometry import validate_pose
+from skillgen_ros.core.planning.collision import AttachedObject, Box, CollisionModel
+from skillgen_ros.core.planning.ik import IKSolver
+from skillgen_ros.core.planning.kinematics import PandaKinematics
+from skillgen_ros.core.planning.planner import Mode, MotionPlanner, PlanStatus
+from skillgen_ros.core.robot import ARM_JOINTS
+from skillgen_ros.nodes import convert
+from skillgen_ros.nodes.runtime import run_node
+
+WORLD_FRAMES = ("", "world", "panda_link0")
+LATCHED = QoSProfile(depth=1, reliability=QoSReliabilityPolicy.RELIABLE,
+                     durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+PARAMS = {  # name: (default, description)
+    "default_timeout": (2.0, "planning budget (s) when the request's timeout is <= 0"),
+    "ik_timeout": (0.05, "IK budget (s) for the goal"),
+    "retreat_distance": (0.05, "retreat along the gripper's -z (m)"),
+    "approach_distance": (0.05, "approach along the gripper's +z (m)"),
+    "box_margin": (0.005, "safety margin against scene boxes (m)"),
+    "cloud_margin": (0.01, "safety margin against point-cloud points (m)"),
+    "cloud_fill_below": (True, "treat the space under observed points as occupied (heightmap)"),
+    "velocity_scale": (0.5, "fraction of the Panda's V/A/J limits used for timing"),
+    "dt": (0.02, "trajectory sample period (s)"),
+    "execute_timeout": (60.0, "longest wait for execute_trajectory (s)"),
+    "seed": (0, "OMPL/IK random seed (0 = nondeterministic)"),
+}
+
+
+def scene_boxes(objects) -> dict[str, Box]:
+    """SceneObject[] -> {id: Box}; objects without a pose or half extents are skipped."""
+    out = {}
+    for o in objects:
+        if not o.has_pose or len(o.half_extents) != 3:
+            continue
+        p, q = convert.pose_arrays_from_msg(o.pose)
+        pose = validate_pose(p, q, f"object {o.id}")
+        out[o.id] = Box(o.id, pose.matrix(), np.asarray(o.half_extents, float))
+    return out
+
+
+class PlannerNode(Node):
+    def __init__(self):
+        super().__init__("planner")
+        for name, (default, desc) in PARAMS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=desc))
+        p = {n: self.get_parameter(n).value for n in PARAMS}
+        if p["velocity_scale"] <= 0 or p["velocity_scale"] > 1 or p["dt"] <= 0:
+            raise ParameterError("velocity_scale must be in (0, 1] and dt > 0")
+        self.p = p
+        seed = int(p["seed"]) or None
+        self.kin = PandaKinematics()
+        self.cm = CollisionModel(self.kin, margin=p["box_margin"], cloud_margin=p["cloud_margin"])
+        self.ik = IKSolver(self.kin, rng=seed)
+        self.planner = MotionPlanner(self.kin, self.ik, self.cm, p["retreat_distance"],
+                                     p["approach_distance"], ik_timeout=p["ik_timeout"],
+                                     velocity_scale=p["velocity_scale"], dt=p["dt"], seed=seed)
+        self._lock = threading.Lock()
+        self._q: np.ndarray | None = None
+        self._boxes: dict[str, Box] = {}
+        self._clouds: dict[str, np.ndarray] = {}
+        self._cloud_frames_bad: dict[str, str] = {}
+
+        state_group = ReentrantCallbackGroup()
+        self.create_subscription(JointState, "joint_states", self._on_joints, 10,
+                                 callback_group=state_group)
+        for topic in ("camera/front/points", "camera/wrist/points"):
+            self.create_subscription(PointCloud2, topic, lambda m, t=topic: self._on_cloud(t, m),
+                                     qos_profile_sensor_data, callback_group=state_group)
+        self.create_subscription(PointCloud2, "perception/obstacles",
+                                 lambda m: self._on_cloud("perception/obstacles", m), LATCHED,
+                                 callback_group=state_group)
+        self.markers = self.create_publisher(MarkerArray, "planner/path_markers", LATCHED)
+        self.exec_client = ActionClient(self, ExecuteTrajectory, "execute_trajectory",
+                                        callback_group=state_group)
+        self.create_service(PlanToPose, "plan_to_pose", self._on_plan,
+                            callback_group=MutuallyExclusiveCallbackGroup())
+        self.get_logger().info("planner ready")
+
+    # -- state -------------------------------------------------------------------------------
+    def _on_joints(self, msg: JointState):
+        idx = {n: i for i, n in enumerate(msg.name)}
+        if all(j in idx for j in ARM_JOINTS) and len(msg.position) == len(msg.name):
+            with self._lock:
+                self._q = np.array([msg.position[idx[j]] for j in ARM_JOINTS])
+
+    def _on_cloud(self, topic: str, msg: PointCloud2):
+        with self._lock:
+            if msg.header.frame_id not in WORLD_FRAMES:
+                self._cloud_frames_bad[topic] = msg.header.frame_id
+                return
+            self._cloud_frames_bad.pop(topic, None)
+            self._clouds[topic] = convert.cloud_to_points(msg)
+
+    def _cloud(self) -> np.ndarray:
+        with self._lock:
+            if "perception/obstacles" in self._clouds:
+                return self._clouds["perception/obstacles"]
+            parts = [c for t, c in self._clouds.items()]
+        return np.vstack(parts) if parts else np.empty((0, 3))
+
+    # -- service -----------------------------------------------------------------------------
+    def _on_plan(self, req: PlanToPose.Request, resp: PlanToPose.Response):
+        t0 = time.perf_counter()
+        try:
+            status, msg, result = self._plan(req)
+        except SkillGenError as e:
+            status, msg, result = PlanStatus.INVALID_REQUEST, str(e), None
+        except Exception as e:  # noqa: BLE001 -- a bug must not take the service down
+            self.get_logger().error(f"plan_to_pose failed: {traceback.format_exc()}")
+            status, msg, result = PlanStatus.INVALID_REQUEST, f"internal error: {e!r}", None
+        resp.status = int(status)
+        resp.status_name = status.name
+        resp.message = msg
+        if result is not None:
+            for phase, sec in result.timings.items():
+                resp.timings.append(_timing(phase, sec))
+        if result is not None and result.ok:
+            tr = result.trajectory
+            resp.trajectory = convert.trajectory_to_msg(ARM_JOINTS, tr.times, tr.positions,
+                                                        tr.velocities, tr.accelerations, "world")
+            resp.trajectory.header.stamp = self.get_clock().now().to_msg()
+            self._publish_markers(result)
+            if req.execute:
+                ok, why = self._execute(resp.trajectory)
+                if not ok:
+                    resp.status = PlanToPose.Response.EXECUTION_FAILED
+                    resp.status_name = "EXECUTION_FAILED"
+                    resp.message = why
+        self.get_logger().info(f"plan_to_pose: {resp.status_name} in {time.perf_counter() - t0:.3f} s"
+                               f" ({resp.message})")
+        return resp
+
+    def _plan(self, req):
+        if len(req.objects):
+            self._boxes = scene_boxes(req.objects)
+        t = req.target.header.frame_id
+        if t not in WORLD_FRAMES:
+            raise InvalidInputError(f"target frame {t!r} unsupported (use world)")
+        p, q = convert.pose_arrays_from_msg(req.target.pose)
+        target = validate_pose(p, q, "target")
+        if req.mode not in (PlanToPose.Request.TRANSIT, PlanToPose.Request.TRANSFER):
+            raise InvalidInputError(f"unknown mode {req.mode}")
+        if req.collision_source not in (PlanToPose.Request.SOURCE_SCENE,
+                                        PlanToPose.Request.SOURCE_POINT_CLOUD):
+            raise InvalidInputError(f"unknown collision_source {req.collision_source}")
+        timeout = req.timeout if req.timeout > 0 else self.p["default_timeout"]
+        if not math.isfinite(timeout):
+            raise InvalidInputError("timeout is not finite")
+        if len(req.start_positions):
+            q0 = np.asarray(req.start_positions, float)
+            if q0.shape != (7,) or not np.all(np.isfinite(q0)):
+                raise InvalidInputError("start_positions must be 7 finite values")
+        else:
+            with self._lock:
+                q0 = None if self._q is None else self._q.copy()
+            if q0 is None:
+                raise InvalidInputError("no start_positions and no joint_states received yet")
+        boxes = dict(self._boxes)
+        T0 = self.kin.fk(q0)
+        attached = None
+        mode = Mode.TRANSIT if req.mode == PlanToPose.Request.TRANSIT else Mode.TRANSFER
+        if mode is Mode.TRANSFER:
+            box = boxes.get(req.attached_object)
+            if box is None:
+                raise InvalidInputError(f"attached object {req.attached_object!r} not in the scene")
+            attached = AttachedObject.from_box(box.name, box.half_extents, np.linalg.inv(T0) @ box.pose)
+        obstacles = {k: b for k, b in boxes.items() if attached is None or k != attached.name}
+        if req.collision_source == PlanToPose.Request.SOURCE_SCENE:
+            self.cm.set_boxes(list(obstacles.values()))
+            self.cm.set_point_cloud(np.empty((0, 3)))
+        else:
+            with self._lock:
+                bad = dict(self._cloud_frames_bad)
+            if bad and not self._clouds:
+                raise InvalidInputError(f"point clouds in unsupported frames: {bad}")
+            self.cm.set_boxes(list(obstacles.values()), as_obstacles=False)
+            self.cm.set_point_cloud(self._cloud(), self_filter_q=q0, attached=attached,
+                                    fill_below=bool(self.p["cloud_fill_below"]))
+        manipulated = req.manipulated_object or None
+        released = _containing(obstacles, T0[:3, 3])
+        start_support = goal_support = "table"
+        if attached is not None:
+            start_support = _support(obstacles, boxes[attached.name].pose[:3, 3]) or "table"
+            T_obj_goal = target.matrix() @ (np.linalg.inv(T0) @ boxes[attached.name].pose)
+            goal_support = _support(obstacles, T_obj_goal[:3, 3]) or "table"
+        result = self.planner.plan(q0, target, mode, attached, manipulated, released,
+                                   start_support, goal_support, timeout)
+        return result.status, result.message, result
+
+    # -- output ------------------------------------------------------------------------------
+    def _publish_markers(self, result):
+        stamp = self.get_clock().now().to_msg()
+        ee = self.kin.fk_batch(result.trajectory.positions)[:, :3, 3]
+        colours = {"retreat": (1.0, 0.6, 0.0), "transit": (0.1, 0.6, 1.0),
+                   "transfer": (0.7, 0.2, 1.0), "approach": (0.2, 0.9, 0.2)}
+        wp_ee = self.kin.fk_batch(result.joint_path)[:, :3, 3]
+        arr = MarkerArray()
+        arr.markers.append(Marker(action=Marker.DELETEALL))
+        for i, (phase, a, b) in enumerate(result.segments):
+            m = Marker(ns="planner_path", id=i, type=Marker.LINE_STRIP, action=Marker.ADD)
+            m.header.frame_id, m.header.stamp = "world", stamp
+            m.pose.orientation.w = 1.0
+            m.scale.x = 0.005
+            m.color.r, m.color.g, m.color.b = colours.get(phase, (1.0, 1.0, 1.0))
+            m.color.a = 1.0
+            m.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in wp_ee[a:b + 1]]
+            arr.markers.append(m)
+        m = Marker(ns="planner_ee", id=100, type=Marker.LINE_STRIP, action=Marker.ADD)
+        m.header.frame_id, m.header.stamp = "world", stamp
+        m.pose.orientation.w = 1.0
+        m.scale.x = 0.002
+        m.color.r = m.color.g = m.color.b = m.color.a = 1.0
+        m.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in ee[:: max(1, len(ee) // 200)]]
+        arr.markers.append(m)
+        self.markers.publish(arr)
+
+    def _execute(self, traj_msg) -> tuple[bool, str]:
+        if not self.exec_client.wait_for_server(timeout_sec=2.0):
+            return False, "execute_trajectory action server not available"
+        goal = ExecuteTrajectory.Goal(trajectory=traj_msg)
+        fut = self.exec_client.send_goal_async(goal)
+        if not _wait(fut, 5.0) or not fut.result().accepted:
+            return False, "execute_trajectory goal rejected"
+        res_fut = fut.result().get_result_async()
+        if not _wait(res_fut, self.p["execute_timeout"]):
+            return False, "execute_trajectory timed out"
+        r = res_fut.result().result
+        if r.error_code != ExecuteTrajectory.Result.SUCCESSFUL:
+            return False, f"execution failed ({r.error_code}): {r.error_string}"
+        return True, ""
+
+
+def _timing(phase: str, seconds: float) -> PhaseTiming:
+    return PhaseTiming(phase=phase, seconds=float(seconds))
+
+
+def _wait(fut, timeout: float) -> bool:
+    end = time.monotonic() + timeout
+    while not fut.done() and time.monotonic() < end:
+        time.sleep(0.005)
+    return fut.done()
+
+
+def _containing(boxes: dict[str, Box], point, pad: float = 0.02) -> str | None:
+    for name, b in boxes.items():
+        if b.contains(np.asarray(point, float)[None], pad)[0]:
+            return name
+    return None
+
+
+def _support(boxes: dict[str, Box], centre, depth: float = 0.15) -> str | None:
+    """The box right below `centre` (within `depth`), i.e. what an object there rests on."""
+    best, best_top = None, -np.inf
+    for name, b in boxes.items():
+        local = (np.asarray(centre) - b.pose[:3, 3]) @ b.pose[:3, :3]
+        top = b.pose[2, 3] + np.abs(b.pose[2, :3]) @ b.half_extents
+        if np.all(np.abs(local[:2]) <= b.half_extents[:2] + 0.01) and centre[2] - depth < top < centre[2] + 0.01:
+            if top > best_top:
+                best, best_top = name, top
+    return best
 
 
 def main(args=None) -> int:
-    return not_implemented("planner", "see the issue tracker")
+    return run_node(PlannerNode, args)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ type, or a `SkillGenError` (e.g. ParameterError) raised while the node is built.
 """
 from __future__ import annotations
 
+import signal
 import sys
 from typing import Callable
 
@@ -49,6 +50,9 @@ def run_node(factory: Callable[[], "rclpy.node.Node"], args=None, threads: int =
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        # A second Ctrl-C must not interrupt the cleanup (a recorder finalizing its bag, say).
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
         if node is not None:
             try:
                 node.destroy_node()

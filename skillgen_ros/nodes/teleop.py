@@ -1,11 +1,300 @@
-"""teleop node (placeholder until its issue lands)."""
-import sys
+"""teleop node: a person drives the end effector from a keyboard (and a 3D mouse when present).
 
-from skillgen_ros.nodes.runtime import not_implemented
+Publishes `osc_target` (skillgen_interfaces/OscTarget) at `rate_hz` (20 Hz), an absolute EE target
+that starts at the current `ee_pose` and is moved by key presses; the target is kept within
+`max_lead` metres of the measured EE so that releasing the keys stops the arm quickly and the
+same node works on a real robot after remapping `ee_pose` / `osc_target`.
+
+Keys (terminal in raw mode; world / robot-base frame, x forward, y left, z up):
+    w / s   +x / -x            u / o   roll  +/- (about world x)
+    a / d   +y / -y            i / k   pitch +/- (about world y)
+    r / f   +z / -z            j / l   yaw   +/- (about world z)
+    space   toggle gripper (open <-> closed)
+    ] / [   double / halve the step size     h   print this help
+    0       reset the target to the measured EE pose
+    q       quit (Ctrl-C works too)
+Each key press moves the target by `linear_step` metres or `angular_step` radians; holding a
+key repeats it at the terminal's auto-repeat rate.
+
+3D mouse: if `spacemouse_device` (default: the first /dev/input/by-id/*3Dconnexion*-event-*
+or *SpaceMouse*-event-* device) exists and is readable, its six axes add a velocity of up to
+`spacemouse_max_linear` m/s and `spacemouse_max_angular` rad/s, and its first button toggles
+the gripper. Without one the node runs keyboard-only.
+"""
+from __future__ import annotations
+
+import glob
+import os
+import re
+import select
+import struct
+import sys
+import termios
+import threading
+import tty
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from skillgen_ros.nodes.runtime import run_node
+
+# key -> (linear direction (3,), angular axis (3,)) in the world frame
+KEY_MOTION: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
+    "w": ((1, 0, 0), (0, 0, 0)), "s": ((-1, 0, 0), (0, 0, 0)),
+    "a": ((0, 1, 0), (0, 0, 0)), "d": ((0, -1, 0), (0, 0, 0)),
+    "r": ((0, 0, 1), (0, 0, 0)), "f": ((0, 0, -1), (0, 0, 0)),
+    "u": ((0, 0, 0), (1, 0, 0)), "o": ((0, 0, 0), (-1, 0, 0)),
+    "i": ((0, 0, 0), (0, 1, 0)), "k": ((0, 0, 0), (0, -1, 0)),
+    "j": ((0, 0, 0), (0, 0, 1)), "l": ((0, 0, 0), (0, 0, -1)),
+}
+GRIPPER_KEY = " "
+QUIT_KEYS = ("q", "\x03", "\x04")  # q, Ctrl-C, Ctrl-D
+_ESCAPES = re.compile(r"\x1b(\[[0-9;]*[A-Za-z~]|O.)?")
+HELP = __doc__.split("Keys", 1)[1].split("\n\n")[0]
+
+
+@dataclass(frozen=True)
+class Target:
+    """The commanded EE pose (position (3,), xyzw quaternion (4,)) and gripper -1 open..+1 closed."""
+
+    position: np.ndarray
+    quaternion: np.ndarray
+    gripper: float = -1.0
+
+
+def apply_key(t: Target, key: str, linear_step: float, angular_step: float) -> Target:
+    """The target after one key press (unknown keys leave it unchanged)."""
+    if key == GRIPPER_KEY:
+        return Target(t.position, t.quaternion, -1.0 if t.gripper > 0 else 1.0)
+    if key not in KEY_MOTION:
+        return t
+    lin, ang = (np.asarray(v, float) for v in KEY_MOTION[key])
+    return apply_twist(t, lin * linear_step, ang * angular_step)
+
+
+def apply_twist(t: Target, dpos: np.ndarray, drot: np.ndarray) -> Target:
+    """Move the target by a world-frame translation and a world-frame rotation vector."""
+    q = (Rotation.from_rotvec(drot) * Rotation.from_quat(t.quaternion)).as_quat()
+    return Target(np.asarray(t.position, float) + dpos, q, t.gripper)
+
+
+def clamp_lead(t: Target, ee_position: np.ndarray, max_lead: float) -> Target:
+    """Keep the target within max_lead of the measured EE so it never runs far ahead of the arm."""
+    d = np.asarray(t.position) - np.asarray(ee_position)
+    n = float(np.linalg.norm(d))
+    if n <= max_lead or n == 0.0:
+        return t
+    return Target(np.asarray(ee_position) + d * (max_lead / n), t.quaternion, t.gripper)
+
+
+# ---- 3D mouse (Linux evdev) ------------------------------------------------------------------
+_EVENT = struct.Struct("llHHi")  # struct input_event: timeval, type, code, value
+EV_KEY, EV_REL, EV_ABS = 0x01, 0x02, 0x03
+SPACEMOUSE_FULL_SCALE = 350.0  # typical axis range of 3Dconnexion devices
+
+
+def find_spacemouse(explicit: str = "") -> str | None:
+    """The 3D-mouse event device to read, or None when there is none (the usual case)."""
+    cands = [explicit] if explicit else sorted(
+        glob.glob("/dev/input/by-id/*3Dconnexion*-event-*") + glob.glob("/dev/input/by-id/*SpaceMouse*-event-*")
+        + glob.glob("/dev/input/by-id/*spacenav*-event-*"))
+    for c in cands:
+        if c and os.path.exists(c) and os.access(c, os.R_OK):
+            return c
+    return None
+
+
+def parse_spacemouse_events(data: bytes, axes: np.ndarray) -> tuple[np.ndarray, int]:
+    """Update the six axes (x y z rx ry rz, -1..1) from raw events; returns (axes, button presses)."""
+    axes = axes.copy()
+    presses = 0
+    for off in range(0, len(data) - _EVENT.size + 1, _EVENT.size):
+        _, _, typ, code, value = _EVENT.unpack_from(data, off)
+        if typ in (EV_REL, EV_ABS) and code < 6:
+            axes[code] = float(np.clip(value / SPACEMOUSE_FULL_SCALE, -1.0, 1.0))
+        elif typ == EV_KEY and value == 1:
+            presses += 1
+    return axes, presses
+
+
+def spacemouse_twist(axes: np.ndarray, dt: float, max_lin: float, max_ang: float) -> tuple[np.ndarray, np.ndarray]:
+    """Device axes -> world translation and rotation for one period (device y/z flipped to z up)."""
+    lin = np.array([axes[1], axes[0], -axes[2]]) * max_lin * dt
+    ang = np.array([axes[4], axes[3], -axes[5]]) * max_ang * dt
+    return lin, ang
+
+
+# ---- the node --------------------------------------------------------------------------------
+def _make_node():
+    from geometry_msgs.msg import PoseStamped
+    from rcl_interfaces.msg import ParameterDescriptor
+    from rclpy.node import Node
+    import rclpy
+
+    from skillgen_interfaces.msg import GripperState, OscTarget
+
+    class Teleop(Node):
+        """Keyboard (and 3D mouse) -> osc_target at a fixed rate, relative to the measured EE."""
+
+        def __init__(self):
+            super().__init__("teleop")
+            p = {
+                "rate_hz": (20.0, "osc_target publishing rate"),
+                "linear_step": (0.01, "metres per key press"),
+                "angular_step": (0.08, "radians per key press"),
+                "max_lead": (0.08, "largest distance (m) the target may run ahead of the measured EE"),
+                "frame_id": ("world", "frame of the published target"),
+                "read_stdin": (True, "read keys from this process's terminal"),
+                "spacemouse_device": ("", "3D mouse evdev path; empty = autodetect under /dev/input/by-id"),
+                "spacemouse_max_linear": (0.15, "m/s at full 3D-mouse deflection"),
+                "spacemouse_max_angular": (0.8, "rad/s at full 3D-mouse deflection"),
+            }
+            for name, (default, desc) in p.items():
+                self.declare_parameter(name, default, ParameterDescriptor(description=desc))
+            g = lambda n: self.get_parameter(n).value  # noqa: E731
+            self._rate = float(g("rate_hz"))
+            self._lin, self._ang = float(g("linear_step")), float(g("angular_step"))
+            self._lead, self._frame = float(g("max_lead")), str(g("frame_id"))
+            self._sm_lin, self._sm_ang = float(g("spacemouse_max_linear")), float(g("spacemouse_max_angular"))
+            self._lock = threading.Lock()
+            self._target: Target | None = None
+            self._ee: np.ndarray | None = None
+            self._gripper_cmd: float | None = None
+            self._keys: list[str] = []
+            self._warned = False
+            self._pub = self.create_publisher(OscTarget, "osc_target", 10)
+            self.create_subscription(PoseStamped, "ee_pose", self._on_ee, 10)
+            self.create_subscription(GripperState, "gripper_state", self._on_gripper, 10)
+            self._OscTarget = OscTarget
+            self._rclpy = rclpy
+            self._tty_state = None
+            self._stop = threading.Event()
+            if bool(g("read_stdin")):
+                threading.Thread(target=self._read_keys, daemon=True).start()
+            self._sm_fd, self._sm_axes = None, np.zeros(6)
+            dev = find_spacemouse(str(g("spacemouse_device")))
+            if dev:
+                try:
+                    self._sm_fd = os.open(dev, os.O_RDONLY | os.O_NONBLOCK)
+                    self.get_logger().info(f"3D mouse: {dev}")
+                except OSError as e:
+                    self.get_logger().warning(f"3D mouse {dev} not usable: {e}")
+            self.create_timer(1.0 / self._rate, self._tick)
+            self.get_logger().info("teleop keys:" + HELP)
+
+        # -- inputs
+        def _on_ee(self, msg):
+            p, q = msg.pose.position, msg.pose.orientation
+            with self._lock:
+                self._ee = np.array([p.x, p.y, p.z, q.x, q.y, q.z, q.w])
+
+        def _on_gripper(self, msg):
+            with self._lock:
+                self._gripper_cmd = float(msg.command)
+
+        def _read_keys(self):
+            try:
+                fd = sys.stdin.fileno()
+            except (OSError, ValueError):  # no stdin at all (e.g. started by a launcher)
+                self.get_logger().warning("no terminal on stdin: keyboard input disabled")
+                return
+            if os.isatty(fd):
+                self._tty_state = termios.tcgetattr(fd)
+                tty.setcbreak(fd)  # one key at a time, no echo; Ctrl-C still raises SIGINT
+            while not self._stop.is_set():
+                r, _, _ = select.select([fd], [], [], 0.1)
+                if not r:
+                    continue
+                data = os.read(fd, 64)
+                if not data:  # stdin closed
+                    return
+                text = _ESCAPES.sub("", data.decode("utf-8", "ignore"))  # arrows etc. are not '[' presses
+                with self._lock:
+                    self._keys.extend(text)
+
+        # -- the control period
+        def _tick(self):
+            with self._lock:
+                keys, self._keys = self._keys, []
+                ee = None if self._ee is None else self._ee.copy()
+                grip0 = self._gripper_cmd
+            if self._target is None:
+                if ee is None:  # no robot yet: honour quit, ignore motion keys (no typing ahead)
+                    if any(k in QUIT_KEYS for k in keys):
+                        self._restore_tty()
+                        self._rclpy.try_shutdown()
+                    elif keys and not self._warned:
+                        self._warned = True
+                        self.get_logger().warning("no ee_pose yet (is the driver up?); keys ignored until it is")
+                    return
+                self._target = Target(ee[:3], ee[3:], grip0 if grip0 is not None and grip0 > 0 else -1.0)
+            t = self._target
+            for k in keys:
+                if k in QUIT_KEYS:
+                    self.get_logger().info("teleop: quit")
+                    self._restore_tty()
+                    self._rclpy.try_shutdown()
+                    return
+                if k == "h":
+                    print("teleop keys:" + HELP, file=sys.stderr, flush=True)
+                elif k == "]":
+                    self._lin, self._ang = self._lin * 2, self._ang * 2
+                elif k == "[":
+                    self._lin, self._ang = self._lin / 2, self._ang / 2
+                elif k == "0" and ee is not None:
+                    t = Target(ee[:3], ee[3:], t.gripper)
+                else:
+                    t = apply_key(t, k, self._lin, self._ang)
+            t = self._spacemouse(t)
+            if ee is not None:
+                t = clamp_lead(t, ee[:3], self._lead)
+            self._target = t
+            msg = self._OscTarget()
+            msg.header.stamp = self.get_clock().now().to_msg()
+            msg.header.frame_id = self._frame
+            msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in t.position)
+            (msg.pose.orientation.x, msg.pose.orientation.y,
+             msg.pose.orientation.z, msg.pose.orientation.w) = (float(v) for v in t.quaternion)
+            msg.gripper = float(t.gripper)
+            self._pub.publish(msg)
+
+        def _spacemouse(self, t: Target) -> Target:
+            if self._sm_fd is None:
+                return t
+            try:
+                data = os.read(self._sm_fd, _EVENT.size * 64)
+            except BlockingIOError:
+                data = b""
+            except OSError:
+                self._sm_fd = None
+                return t
+            self._sm_axes, presses = parse_spacemouse_events(data, self._sm_axes)
+            for _ in range(presses):
+                t = apply_key(t, GRIPPER_KEY, 0, 0)
+            lin, ang = spacemouse_twist(self._sm_axes, 1.0 / self._rate, self._sm_lin, self._sm_ang)
+            return apply_twist(t, lin, ang) if np.any(self._sm_axes) else t
+
+        def _restore_tty(self):
+            if self._tty_state is not None:
+                try:
+                    termios.tcsetattr(sys.stdin.fileno(), termios.TCSADRAIN, self._tty_state)
+                except termios.error:
+                    pass
+                self._tty_state = None
+
+        def destroy_node(self):
+            self._stop.set()
+            self._restore_tty()
+            if self._sm_fd is not None:
+                os.close(self._sm_fd)
+            return super().destroy_node()
+
+    return Teleop()
 
 
 def main(args=None) -> int:
-    return not_implemented("teleop", "see the issue tracker")
+    return run_node(_make_node, args, name="teleop")
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ from ..sim.camera import CameraConfig
 from ..sim.world import SimWorld
 from ..tasks.spec import ObjectSpec
 from .episode import Observation
+from .grasp import GraspTracker
 
 PERCEPTION_MODES = ("estimate", "ground_truth")
 COLLISION_SOURCES = ("scene", "cloud")
@@ -82,6 +83,8 @@ class SimGenerationEnv:
         self.planner = MotionPlanner(self.kin, IKSolver(self.kin, rng=np.random.default_rng(config.seed)), self.cm,
                                      seed=config.seed)
         self.scene = None
+        self.grasps = GraspTracker()
+        self._last_gripper, self._closing = -1.0, -1
         self._estimates: dict[str, Pose] = {}
         self._collided = False
         self._models = None
@@ -90,6 +93,8 @@ class SimGenerationEnv:
     def reset(self, task: str, variant: str, seed: int):
         self.scene = self.world.reset(task, variant, seed)
         self._estimates = {}
+        self.grasps.clear()
+        self._last_gripper, self._closing = -1.0, -1
         self._collided = False
         self._models = None
         return self.scene
@@ -117,16 +122,15 @@ class SimGenerationEnv:
                              object_ids=self._required_ids())
         if not res.ok:
             raise SkillGenError(f"perception: {res.status.name}: {res.message}", reason="PERCEPTION_FAILED")
-        self._estimates = {k: v.pose for k, v in res.poses.items()}
+        held = self.grasps.holding()
+        self._estimates.update({k: v.pose for k, v in res.poses.items() if k != held})
         self._obstacle_cloud = res.obstacles
         return dict(self._estimates)
 
     def _required_ids(self):
         # Once an object is in the hand, the camera may not see it; only require objects on the table.
-        return [o.id for o in self.scene.objects if o.id != "obstacle" and not self._held(o.id)]
-
-    def _held(self, oid: str) -> bool:
-        return self.world.is_grasping() and any(c.body == oid for c in self.world.robot_contacts([oid]))
+        held = self.grasps.holding()
+        return [o.id for o in self.scene.objects if o.id != "obstacle" and o.id != held]
 
     def current_ee_pose(self) -> Pose:
         return self.world.ee_pose()
@@ -158,9 +162,11 @@ class SimGenerationEnv:
         if not attached:
             return None
         obj = next(o for o in self.scene.objects if o.id == attached)
-        # Where the object is in the hand: from the live sim pose (the hand holds it now).
-        T_obj = self.world.object_poses()[attached].matrix()
-        T_ee_obj = np.linalg.inv(self.world.ee_pose().matrix()) @ T_obj
+        T_ee_obj = self.grasps.object_in_ee(attached)
+        if T_ee_obj is None:  # not seen closing on it: assume it sits where perception last saw it
+            if attached not in poses:
+                return None
+            T_ee_obj = np.linalg.inv(self.world.ee_pose().matrix()) @ poses[attached].matrix()
         return AttachedObject.from_box(attached, obj.half_extents, T_ee_obj)
 
     def plan_and_execute(self, target: Pose, mode: str, attached: str | None):
@@ -189,7 +195,25 @@ class SimGenerationEnv:
 
     def step(self, target: Pose, gripper: float) -> Observation:
         self.world.step(target, gripper)
+        self._track_grasp(float(gripper))
         return self.observe()
+
+    def _track_grasp(self, gripper: float) -> None:
+        """Rigid attachment from the command stream: a few periods after the hand closes on the
+        skill's object, remember it in the EE frame (GraspTracker); opening releases it."""
+        if gripper > 0 >= self._last_gripper:
+            self._closing = 5  # periods for the fingers to close
+        elif gripper <= 0 < self._last_gripper:
+            self.grasps.released()
+            self._closing = -1
+        self._last_gripper = gripper
+        if self._closing > 0:
+            self._closing -= 1
+            if self._closing == 0 and self._next_object:
+                poses = self.world.object_poses() if self.cfg.perception == "ground_truth" else self._estimates
+                if self._next_object in poses:
+                    self.grasps.grasped(self._next_object, poses[self._next_object].matrix(),
+                                        self.world.ee_pose().matrix())
 
     def task_success(self) -> bool:
         return self.world.task_success()

@@ -25,7 +25,7 @@ from ..bag.writer import ANNOTATIONS_RECORD
 from ..errors import AnnotationError, BagError, SkillGenError
 from ..robot import ARM_JOINTS
 from .annotation import Annotation, load_annotation, loads_annotation
-from .protocols import TaskLike
+from .protocols import TaskLike, known_object_ids
 from .segment import SourceDemo
 from .source_demos import DemoArrays, sample_and_hold, source_demo_from_arrays
 
@@ -216,6 +216,10 @@ def load_source_demo(path, task: TaskLike, annotation: Annotation | str | None =
     if scene is not None and scene.task != task.name:
         raise BagError(f"{path}: bag was recorded for task {scene.task!r}, not {task.name!r}", "WRONG_TASK")
     arrays = read_demo_arrays(path, reader)
+    unknown = sorted(set(arrays.object_positions) - known_object_ids(task))
+    if unknown:
+        raise BagError(f"{path}: recorded objects {unknown} are not objects of task {task.name!r} "
+                       f"(known: {sorted(known_object_ids(task))})", "UNKNOWN_OBJECT")
     if isinstance(annotation, (str, Path)):
         annotation = load_annotation(str(annotation))
     elif annotation is None:

@@ -1,0 +1,154 @@
+"""bench/datagen: generation success per task/variant/method, throughput, graph overhead, perception cost.
+
+Rerun (full protocol, hours on 2 cores):
+    .venv/bin/python bench/datagen/run.py --attempts 200 --workers 2
+Quick look (minutes):
+    .venv/bin/python bench/datagen/run.py --quick
+
+Success cells run in-process (SimGenerationEnv: the same Algorithm 1, dataset writer and seeds as
+the datagen node) with fixed seeds; the graph-overhead cell runs the same attempts through the
+ROS graph (sim_driver lockstep, perception, planner, skill_replay, datagen) and in-process, in
+the same run, and reports the ratio. Throughput is successful demos per hour per CPU core, from
+the CPU time of the process that ran the cell. Writes bench/results/datagen.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
+
+CELLS_FULL = {
+    "Square": ["D0", "D1", "D2", "clutter"],
+    "PickPlace": ["D0", "D1", "D2", "clutter"],
+    "NutAssembly": ["D0", "D1", "D2"],
+    "Threading": ["D0", "D1", "D2"],
+}
+METHODS = [("skillgen", False), ("mimicgen", False), ("skillgen", True)]
+
+
+def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int, seed: int,
+             perception: str, images: bool = False) -> dict:
+    """One (task, variant, method) cell in this process; returns counts, CI and timings."""
+    from skillgen_ros.core.dataset.paper import paper_rate
+    from skillgen_ros.core.dataset.report import wilson_interval
+    from skillgen_ros.core.generation.session import RunRequest, run_generation
+    from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
+    from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
+    from skillgen_ros.core.tasks import get_task
+
+    task_spec = get_task(task)
+    demos = load_source_demos(expand_bag_paths([str(ROOT / "bags" / task)]), task_spec)
+    env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, images=images))
+    with tempfile.TemporaryDirectory() as out:
+        req = RunRequest(task=task, variant=variant, method=method, attempts=attempts, seed=seed, augment=augment,
+                         output_dir=os.path.join(out, "run"), video_attempts=0)
+        cpu0, t0 = time.process_time(), time.perf_counter()
+        run = run_generation(env, demos, task_spec, req, write_report=False)
+        cpu, wall = time.process_time() - cpu0, time.perf_counter() - t0
+    env.close()
+    lo, hi = wilson_interval(run.successes, run.attempts)
+    return {"task": task, "variant": variant, "method": method, "augment": augment, "perception": perception,
+            "images": images, "attempts": run.attempts, "successes": run.successes,
+            "rate": run.successes / run.attempts, "wilson95": [lo, hi],
+            "paper_rate": paper_rate(task, variant, method, augment),
+            "failures": {k: v for k, v in run.failures.items() if v},
+            "cpu_seconds": cpu, "wall_seconds": wall, "seconds_per_attempt": wall / run.attempts,
+            "successes_per_hour_per_core": run.successes / cpu * 3600 if cpu > 0 else 0.0}
+
+
+def graph_overhead(attempts: int, seed: int) -> dict:
+    """Same attempts (Square D0 skillgen, ground-truth poses) through the ROS graph and in-process."""
+    import subprocess
+
+    from skillgen_ros import rosenv
+
+    inproc = run_cell("Square", "D0", "skillgen", False, attempts, seed, "ground_truth")
+    env = rosenv.ros_environment(dict(os.environ))
+    env.setdefault("ROS_DOMAIN_ID", "77")
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [str(ROOT / ".venv" / "bin" / "skillgen"), "generate", "--task", "Square", "--variant", "D0",
+               "--attempts", str(attempts), "--seed", str(seed), "--output", os.path.join(out, "g"), "--no-bag"]
+        t0 = time.perf_counter()
+        p = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=ROOT, timeout=3600)
+        wall = time.perf_counter() - t0
+    ok = p.returncode == 0
+    return {"attempts": attempts, "in_process_seconds_per_attempt": inproc["seconds_per_attempt"],
+            "graph_seconds_per_attempt": wall / attempts if ok else None,
+            "ratio_graph_to_in_process": (wall / attempts) / inproc["seconds_per_attempt"] if ok else None,
+            "graph_includes_startup": True, "graph_exit": p.returncode,
+            "graph_tail": p.stdout[-800:] + p.stderr[-800:], "note": "graph perception per params/perception.yaml"}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--attempts", type=int, default=200)
+    ap.add_argument("--quick", action="store_true", help="10 attempts per cell, D0/D2/clutter only")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=1000)
+    ap.add_argument("--perception", default="ground_truth", choices=["ground_truth", "estimate"])
+    ap.add_argument("--tasks", nargs="*", default=list(CELLS_FULL))
+    ap.add_argument("--skip-graph", action="store_true")
+    ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "datagen.json"))
+    a = ap.parse_args(argv)
+    n = 10 if a.quick else a.attempts
+    jobs = []
+    for task in a.tasks:
+        for variant in CELLS_FULL[task]:
+            if a.quick and variant == "D1":
+                continue
+            for method, aug in METHODS:
+                jobs.append((task, variant, method, aug, n, a.seed, a.perception))
+        jobs.append((task, "D0", "replay_noise", False, n, a.seed, a.perception))
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(max_workers=a.workers) as pool:
+        cells = list(pool.map(_star, jobs))
+    extra = {
+        "throughput_lowdim": run_cell("Square", "D0", "skillgen", False, n, a.seed + 1, a.perception),
+        "throughput_images": run_cell("Square", "D0", "skillgen", False, max(3, n // 4), a.seed + 1, a.perception,
+                                      images=True),
+        "perception_estimate": run_cell("Square", "D1", "skillgen", False, n, a.seed + 2, "estimate"),
+        "perception_ground_truth": run_cell("Square", "D1", "skillgen", False, n, a.seed + 2, "ground_truth"),
+    }
+    if not a.skip_graph:
+        extra["graph_overhead"] = graph_overhead(max(3, n // 4), a.seed + 3)
+    summary = _summarize(cells)
+    out = {"benchmark": "datagen", "rerun": " ".join(["python", "bench/datagen/run.py", *sys.argv[1:]]),
+           "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform()},
+           "attempts_per_cell": n, "seed": a.seed, "perception": a.perception,
+           "wall_seconds": time.perf_counter() - t0, "cells": cells, "summary": summary, **extra}
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(a.out).write_text(json.dumps(out, indent=2))
+    print(json.dumps(summary, indent=2))
+    print(f"wrote {a.out}")
+    return 0
+
+
+def _star(args):
+    return run_cell(*args)
+
+
+def _summarize(cells) -> dict:
+    def avg(pred):
+        xs = [c["rate"] for c in cells if pred(c)]
+        return sum(xs) / len(xs) if xs else None
+
+    out = {}
+    for m, aug in METHODS + [("replay_noise", False)]:
+        key = m + ("+IA" if aug else "")
+        out[key] = {"all": avg(lambda c: c["method"] == m and c["augment"] == aug),
+                    "D2": avg(lambda c: c["method"] == m and c["augment"] == aug and c["variant"] == "D2"),
+                    "clutter": avg(lambda c: c["method"] == m and c["augment"] == aug and c["variant"] == "clutter")}
+    return out
+
+
+if __name__ == "__main__":
+    sys.exit(main())

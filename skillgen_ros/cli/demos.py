@@ -1,0 +1,190 @@
+"""`skillgen demos`: make the shipped source demos, or record one by teleoperation.
+
+    skillgen demos make --task Square [--task ...|all] [--n 10] [--subset 3] [--out bags] [--force]
+    skillgen demos record --task Square [--seed 0] [--out bags]
+
+`make` runs the scripted demonstrator (core/demonstrator: it exists only for this) on the
+pybullet SimWorld in-process, on the task's D0 scenes with scene seeds 1000, 1001, ...; a demo
+the sim judges failed is redone in the same scene with a new demonstrator seed, as a person would.
+Each demo becomes bags/<task>/demo_XX/ (rosbag2-layout MCAP, zstd) with the scene as MCAP
+metadata and an auto-annotation sidecar annotations.yaml; bags/<task>/subsets.yaml lists the
+demos and the 3-demo subset. `record` starts sim_driver (reset to the task's scene), the
+recorder into bags/<task>/teleop_<UTC>/ and the keyboard teleop in this terminal (docs/teleop.md).
+"""
+from __future__ import annotations
+
+import argparse
+import shutil
+import subprocess
+import sys
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+import yaml
+
+from skillgen_ros.core.errors import InvalidInputError, SkillGenError
+from skillgen_ros.core.tasks import TASK_NAMES, get_task
+
+SCENE_SEED_BASE = 1000
+MAX_ATTEMPTS = 6
+SUBSETS_FILE = "subsets.yaml"
+
+
+def demonstrator_seed(scene_seed: int, attempt: int) -> int:
+    return scene_seed * 100 + attempt
+
+
+def make_demo(world, task: str, index: int, out_dir: Path, variant: str = "D0",
+              max_attempts: int = MAX_ATTEMPTS) -> dict:
+    """Record one successful demo into out_dir/demo_<index>/ and annotate it; returns its listing row."""
+    from skillgen_ros.cli.annotate import propose, rules_for
+    from skillgen_ros.cli.demo_bag import write_demo_bag
+    from skillgen_ros.core.demonstrator import ScriptedDemonstrator
+    from skillgen_ros.core.skills.annotation import save_annotation
+    from skillgen_ros.core.skills.bag_demos import annotation_path
+
+    scene_seed = SCENE_SEED_BASE + index
+    name = f"demo_{index:02d}"
+    for attempt in range(max_attempts):
+        seed = demonstrator_seed(scene_seed, attempt)
+        rollout = ScriptedDemonstrator(task, seed).run(world, variant, scene_seed)
+        if rollout.success:
+            break
+    else:
+        raise SkillGenError(f"{task} {name}: demonstrator failed {max_attempts} times in scene seed {scene_seed}",
+                            "DEMO_FAILED")
+    path = out_dir / name
+    tmp = out_dir / ".writing" / name  # same name: the bag's files are named after its directory
+    shutil.rmtree(tmp, ignore_errors=True)
+    write_demo_bag(tmp, rollout)
+    if path.exists():
+        shutil.rmtree(path)
+    tmp.rename(path)
+    tmp.parent.rmdir()
+    ann = propose(path, get_task(task), rules_for(task))
+    save_annotation(str(annotation_path(path)), ann)
+    return {"name": name, "scene_seed": scene_seed, "demonstrator_seed": seed, "attempts": attempt + 1,
+            "steps": len(rollout.steps), "duration_s": round(rollout.steps[-1].time, 2)}
+
+
+def make(tasks, n: int, subset: int, out: Path, force: bool, variant: str = "D0") -> int:
+    from skillgen_ros.core.sim import SimWorld
+
+    for task in tasks:  # check every argument before the (slow) sim starts
+        get_task(task)
+        d = out / task
+        if d.exists() and any(d.iterdir()) and not force:
+            raise InvalidInputError(f"{d} already holds demos; pass --force to remake them", "EXISTS")
+    world = SimWorld()
+    try:
+        for task in tasks:
+            d = out / task
+            d.mkdir(parents=True, exist_ok=True)
+            rows = []
+            t0 = time.monotonic()
+            for i in range(n):
+                row = make_demo(world, task, i, d, variant)
+                rows.append(row)
+                print(f"{task} {row['name']}: {row['steps']} steps, attempt {row['attempts']}", flush=True)
+            doc = {"task": task, "variant": variant, "made_by": "skillgen demos make (scripted demonstrator)",
+                   "demos": rows, "subsets": {"all": [r["name"] for r in rows],
+                                              f"first{subset}": [r["name"] for r in rows[:subset]]}}
+            (d / SUBSETS_FILE).write_text(yaml.safe_dump(doc, sort_keys=False))
+            size = sum(p.stat().st_size for p in d.rglob("*") if p.is_file())
+            print(f"{task}: {n} demos in {d} ({size / 1024:.0f} KiB) in {time.monotonic() - t0:.0f} s")
+    finally:
+        world.close()
+    return 0
+
+
+def subset_paths(task_dir, subset: str = "all") -> list[Path]:
+    """Bag paths of a named subset listed in <task_dir>/subsets.yaml (e.g. 'all', 'first3')."""
+    task_dir = Path(task_dir)
+    f = task_dir / SUBSETS_FILE
+    try:
+        doc = yaml.safe_load(f.read_text())
+    except (OSError, yaml.YAMLError) as e:
+        raise InvalidInputError(f"{f}: cannot read the subset listing: {e}", "BAD_SUBSETS") from e
+    subsets = doc.get("subsets") or {}
+    if subset not in subsets:
+        raise InvalidInputError(f"{f}: no subset {subset!r}; known: {sorted(subsets)}", "BAD_SUBSETS")
+    return [task_dir / name for name in subsets[subset]]
+
+
+# ---------------------------------------------------------------------------------------- record
+SOURCE_TOPICS = ["joint_states", "ee_pose", "gripper_state", "osc_target", "sim/ground_truth/object_poses"]
+
+
+def _exe(name: str) -> str:
+    return str(Path(sys.prefix) / "bin" / name)
+
+
+def record(task: str, seed: int, out: Path, variant: str = "D0") -> int:
+    """sim_driver + recorder + teleop (foreground); on quit, stop all and write the scene sidecar."""
+    from skillgen_ros import rosenv
+
+    get_task(task)
+    stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%S")
+    bag = out / task / f"teleop_{stamp}"
+    bag.parent.mkdir(parents=True, exist_ok=True)
+    env = rosenv.ros_environment(dict(__import__("os").environ))
+    # lockstep: the sim advances one control period per osc_target, so the recorded command stream
+    # is exactly the demo's control steps (and replays open-loop)
+    procs = [subprocess.Popen([_exe("sim_driver"), "--ros-args", "-p", f"initial_task:={task}",
+                               "-p", f"initial_variant:={variant}", "-p", f"initial_seed:={seed}",
+                               "-p", "timing_mode:=lockstep", "-p", "publish_points:=false"],
+                              env=env, stdin=subprocess.DEVNULL)]
+    try:
+        topics = "[" + ",".join(f'"{t}"' for t in SOURCE_TOPICS) + "]"
+        procs.append(subprocess.Popen([_exe("recorder"), "--ros-args", "-p", f"output:={bag}",
+                                       "-p", f"topics:={topics}"], env=env, stdin=subprocess.DEVNULL))
+        print(f"recording {task}/{variant} seed {seed} into {bag}; teleop keys: docs/teleop.md (q quits)",
+              flush=True)
+        teleop = subprocess.run([_exe("teleop")], env=env)  # the foreground: this terminal's keys
+    except KeyboardInterrupt:
+        teleop = None
+    finally:
+        for p in reversed(procs):
+            if p.poll() is None:
+                p.send_signal(2)
+                try:
+                    p.wait(15)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+    if bag.is_dir():
+        from skillgen_ros.core.skills.bag_demos import SIDECAR_SCENE
+
+        (bag / SIDECAR_SCENE).write_text(yaml.safe_dump({"task": task, "variant": variant, "seed": seed,
+                                                         "demo": bag.name, "made_by": "teleop"}))
+        print(f"wrote {bag}; next: skillgen annotate {bag} --task {task}")
+    return 0 if teleop is None or teleop.returncode in (0, 130) else 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="skillgen demos", description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    m = sub.add_parser("make", help="make source demos with the scripted demonstrator (pybullet)")
+    m.add_argument("--task", action="append", required=True, help=f"one of {list(TASK_NAMES)} or 'all'")
+    m.add_argument("--n", type=int, default=10)
+    m.add_argument("--subset", type=int, default=3, help="size of the small subset listed in subsets.yaml")
+    m.add_argument("--variant", default="D0")
+    m.add_argument("--out", default="bags")
+    m.add_argument("--force", action="store_true", help="remake demos that already exist")
+    r = sub.add_parser("record", help="record one demo by keyboard teleoperation on the sim")
+    r.add_argument("--task", required=True)
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--variant", default="D0")
+    r.add_argument("--out", default="bags")
+    a = p.parse_args(argv)
+    if a.cmd == "make":
+        tasks = list(TASK_NAMES) if "all" in a.task else a.task
+        if a.n < 1 or not 1 <= a.subset <= a.n:
+            raise InvalidInputError(f"--n must be >= 1 and --subset in [1, n], got {a.n}, {a.subset}",
+                                    "BAD_ARGUMENTS")
+        return make(tasks, a.n, a.subset, Path(a.out), a.force, a.variant)
+    return record(a.task, a.seed, Path(a.out), a.variant)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,343 @@
+"""BagReader: messages and topic metadata from a rosbag2 bag directory or a bare .mcap file.
+
+Finalized MCAP files are read through their summary (indexed, time-ordered). A file without a
+footer (a recording that was killed) is scanned record by record and read up to its last
+complete, CRC-valid chunk; the reader notes it in `warnings` instead of failing. The MCAP
+files themselves are the truth: a missing or stale metadata.yaml only contributes QoS
+profiles and type hashes. Every failure is a BagError with a reason code. Pure: no rclpy.
+"""
+from __future__ import annotations
+
+import heapq
+import importlib
+import os
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Iterator, Mapping
+
+import yaml
+from mcap.exceptions import McapError
+from mcap.reader import SeekingReader
+from mcap.records import Channel, Chunk, Header, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
+
+from skillgen_ros.core.bag.schemas import split_type
+from skillgen_ros.core.bag.writer import METADATA_FILE
+from skillgen_ros.core.errors import BagError
+
+MAGIC = b"\x89MCAP0\r\n"
+
+
+@dataclass(frozen=True)
+class BagTopic:
+    name: str
+    type: str
+    message_count: int
+    serialization_format: str
+    qos_profiles: tuple[Mapping, ...]
+    type_hash: str
+    schema_text: str
+
+
+@dataclass(frozen=True)
+class BagMessage:
+    topic: str
+    type: str
+    data: bytes
+    log_time_ns: int
+    publish_time_ns: int
+
+
+@dataclass(frozen=True)
+class McapFileInfo:
+    path: Path
+    size_bytes: int
+    message_count: int
+    start_ns: int
+    end_ns: int
+    compression: tuple[str, ...]       # chunk compressions seen ('' = uncompressed)
+    chunk_count: int
+    truncated: bool                    # no footer: read up to the last complete chunk
+    library: str
+
+
+@dataclass
+class _Scan:
+    """What one pass over a file found (mutable while scanning, frozen into the infos after)."""
+
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, Channel] = field(default_factory=dict)
+    counts: dict[int, int] = field(default_factory=dict)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    compression: set[str] = field(default_factory=set)
+    chunks: int = 0
+    start_ns: int = 0
+    end_ns: int = 0
+    truncated: bool = False
+    library: str = ""
+
+
+# What a cut-off or damaged tail raises inside mcap's stream reader.
+_TAIL_ERRORS = (McapError, struct.error, EOFError, ValueError, OSError, RuntimeError)
+
+
+def _records(path: Path, scan: _Scan) -> Iterator[tuple[Channel, Message]]:
+    """Stream every message in file order; stop quietly (scan.truncated) at a damaged tail."""
+    with open(path, "rb") as f:
+        stream = StreamReader(f, skip_magic=True, emit_chunks=True, validate_crcs=True).records
+        head = f.read(8)
+        if head != MAGIC:
+            if len(head) < len(MAGIC) and MAGIC.startswith(head):
+                raise BagError(f"{path} is truncated inside its MCAP magic: nothing to recover",
+                               "BAG_TRUNCATED")
+            raise BagError(f"{path} is not an MCAP file (bad magic)", "NOT_MCAP")
+        while True:
+            try:
+                record = next(stream)
+                inner = breakup_chunk(record, validate_crc=True) if isinstance(record, Chunk) else [record]
+            except StopIteration:
+                return
+            except _TAIL_ERRORS:
+                scan.truncated = True
+                return
+            if isinstance(record, Chunk):
+                scan.chunks += 1
+                scan.compression.add(record.compression)
+            for rec in inner:
+                if isinstance(rec, Schema):
+                    scan.schemas[rec.id] = rec
+                elif isinstance(rec, Channel):
+                    scan.channels[rec.id] = rec
+                elif isinstance(rec, Metadata):
+                    scan.metadata[rec.name] = dict(rec.metadata)
+                elif isinstance(rec, Message) and rec.channel_id in scan.channels:
+                    yield scan.channels[rec.channel_id], rec
+            if isinstance(record, Header):
+                scan.library = record.library
+
+
+def _is_finalized(path: Path) -> bool:
+    size = path.stat().st_size
+    if size < 2 * len(MAGIC) + 29:
+        return False
+    with open(path, "rb") as f:
+        f.seek(-len(MAGIC), os.SEEK_END)
+        return f.read() == MAGIC
+
+
+def _scan_file(path: Path) -> _Scan:
+    scan = _Scan()
+    if _is_finalized(path):
+        try:
+            with open(path, "rb") as f:
+                reader = SeekingReader(f, validate_crcs=True)
+                summary = reader.get_summary()
+                if summary is not None and summary.statistics is not None:
+                    stats = summary.statistics
+                    scan.schemas, scan.channels = dict(summary.schemas), dict(summary.channels)
+                    scan.counts = dict(stats.channel_message_counts)
+                    scan.start_ns, scan.end_ns = stats.message_start_time, stats.message_end_time
+                    scan.chunks = len(summary.chunk_indexes)
+                    scan.compression = {c.compression for c in summary.chunk_indexes}
+                    scan.metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+                    scan.library = reader.get_header().library
+                    return scan
+        except _TAIL_ERRORS:
+            scan = _Scan()  # damaged summary: fall back to the linear scan
+    times = []
+    for channel, msg in _records(path, scan):
+        scan.counts[channel.id] = scan.counts.get(channel.id, 0) + 1
+        times.append(msg.log_time)
+    scan.truncated = scan.truncated or not _is_finalized(path)
+    if times:
+        scan.start_ns, scan.end_ns = min(times), max(times)
+    if not scan.channels and scan.truncated and path.stat().st_size <= len(MAGIC) + 9:
+        raise BagError(f"{path} is truncated before its first record: nothing to recover",
+                       "BAG_TRUNCATED")
+    return scan
+
+
+def _load_metadata_yaml(bag_dir: Path, warnings: list[str]) -> dict | None:
+    meta = bag_dir / METADATA_FILE
+    if not meta.is_file():
+        warnings.append(f"{meta} is missing; reading the .mcap files directly")
+        return None
+    try:
+        doc = yaml.safe_load(meta.read_text())
+        return doc["rosbag2_bagfile_information"]
+    except (yaml.YAMLError, KeyError, TypeError) as e:
+        warnings.append(f"{meta} is unreadable ({type(e).__name__}); reading the .mcap files directly")
+        return None
+
+
+class BagReader:
+    """Open a bag (directory or bare .mcap). Reading never modifies any file."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        self.warnings: list[str] = []
+        self.bag_metadata: dict | None = None
+        if not self.path.exists():
+            raise BagError(f"bag path {self.path} does not exist", "BAG_NOT_FOUND")
+        if self.path.is_dir():
+            paths = self._dir_files()
+        elif self.path.suffix == ".mcap" or self.path.is_file():
+            paths = [self.path]
+        else:
+            raise BagError(f"{self.path} is neither a bag directory nor an .mcap file", "NOT_A_BAG")
+        self._scans: dict[Path, _Scan] = {}
+        for p in paths:
+            try:
+                self._scans[p] = _scan_file(p)
+            except PermissionError as e:
+                raise BagError(f"cannot read {p}: {e.strerror}", "BAG_UNREADABLE") from None
+            if self._scans[p].truncated:
+                self.warnings.append(
+                    f"BAG_TRUNCATED: {p.name} has no valid footer; read "
+                    f"{sum(self._scans[p].counts.values())} messages up to its last complete chunk")
+        self.files = tuple(self._file_info(p, s) for p, s in self._scans.items())
+        self.topics = self._collect_topics()
+        self.metadata_records = {k: v for s in self._scans.values() for k, v in s.metadata.items()}
+
+    # -- summary ----------------------------------------------------------------------------
+    @property
+    def message_count(self) -> int:
+        return sum(f.message_count for f in self.files)
+
+    @property
+    def start_ns(self) -> int:
+        return min((f.start_ns for f in self.files if f.message_count), default=0)
+
+    @property
+    def end_ns(self) -> int:
+        return max((f.end_ns for f in self.files if f.message_count), default=0)
+
+    @property
+    def truncated(self) -> bool:
+        return any(f.truncated for f in self.files)
+
+    # -- messages ---------------------------------------------------------------------------
+    def messages(self, topics: Iterable[str] | None = None, start_ns: int | None = None,
+                 end_ns: int | None = None) -> Iterator[BagMessage]:
+        """All messages in log-time order (merged across split files); [start_ns, end_ns)."""
+        wanted = None if topics is None else set(topics)
+        unknown = (wanted or set()) - set(self.topics)
+        if unknown:
+            raise BagError(f"topics {sorted(unknown)} are not in {self.path}; it has "
+                           f"{sorted(self.topics)}", "UNKNOWN_TOPIC")
+        streams = [self._file_messages(p, s, wanted, start_ns, end_ns) for p, s in self._scans.items()]
+        yield from heapq.merge(*streams, key=lambda m: m.log_time_ns)
+
+    def _file_messages(self, path: Path, scan: _Scan, wanted, start_ns, end_ns) -> Iterator[BagMessage]:
+        def keep(channel: Channel, msg: Message) -> bool:
+            return ((wanted is None or channel.topic in wanted)
+                    and (start_ns is None or msg.log_time >= start_ns)
+                    and (end_ns is None or msg.log_time < end_ns))
+
+        def make(schema_name: str, channel: Channel, msg: Message) -> BagMessage:
+            return BagMessage(channel.topic, schema_name, bytes(msg.data), msg.log_time, msg.publish_time)
+
+        if not scan.truncated:
+            with open(path, "rb") as f:
+                reader = SeekingReader(f)
+                for schema, channel, msg in reader.iter_messages(
+                        topics=None if wanted is None else list(wanted), log_time_order=True,
+                        starting_at=start_ns, ending_before=end_ns):
+                    yield make(schema.name if schema else "", channel, msg)
+            return
+        # Killed recording: file order is receive order; sort within the file's recovered part.
+        rescan = _Scan()
+        batch = [make(rescan.schemas[c.schema_id].name if c.schema_id in rescan.schemas else "", c, m)
+                 for c, m in _records(path, rescan) if keep(c, m)]
+        batch.sort(key=lambda m: m.log_time_ns)
+        yield from batch
+
+    # -- internals --------------------------------------------------------------------------
+    def _dir_files(self) -> list[Path]:
+        self.bag_metadata = _load_metadata_yaml(self.path, self.warnings)
+        found = sorted(self.path.glob("*.mcap"), key=lambda p: (len(p.name), p.name))
+        listed: list[Path] = []
+        if self.bag_metadata is not None:
+            if self.bag_metadata.get("storage_identifier", "mcap") != "mcap":
+                raise BagError(f"{self.path} uses storage '{self.bag_metadata.get('storage_identifier')}';"
+                               " only mcap is supported", "UNSUPPORTED_STORAGE")
+            for rel in self.bag_metadata.get("relative_file_paths") or []:
+                p = self.path / Path(str(rel)).name
+                if p.exists():
+                    listed.append(p)
+                else:
+                    self.warnings.append(f"metadata.yaml lists {rel}, which is missing")
+        paths = listed + [p for p in found if p not in listed]
+        if not paths:
+            raise BagError(f"{self.path} holds no .mcap files", "BAG_EMPTY")
+        return paths
+
+    @staticmethod
+    def _file_info(path: Path, s: _Scan) -> McapFileInfo:
+        return McapFileInfo(path=path, size_bytes=path.stat().st_size,
+                            message_count=sum(s.counts.values()), start_ns=s.start_ns, end_ns=s.end_ns,
+                            compression=tuple(sorted(s.compression)), chunk_count=s.chunks,
+                            truncated=s.truncated, library=s.library)
+
+    def _collect_topics(self) -> dict[str, BagTopic]:
+        yaml_topics = {}
+        for entry in (self.bag_metadata or {}).get("topics_with_message_count") or []:
+            tm = entry.get("topic_metadata", {}) if isinstance(entry, dict) else {}
+            if "name" in tm:
+                yaml_topics[tm["name"]] = tm
+        counts: dict[str, int] = {}
+        first: dict[str, tuple[Channel, Schema | None]] = {}
+        for s in self._scans.values():
+            for cid, ch in s.channels.items():
+                counts[ch.topic] = counts.get(ch.topic, 0) + s.counts.get(cid, 0)
+                first.setdefault(ch.topic, (ch, s.schemas.get(ch.schema_id)))
+        topics = {}
+        for name, (ch, schema) in first.items():
+            tm = yaml_topics.get(name, {})
+            qos = tm.get("offered_qos_profiles")
+            if not qos:
+                try:
+                    qos = yaml.safe_load(ch.metadata.get("offered_qos_profiles", "") or "[]")
+                except yaml.YAMLError:
+                    qos = []
+            topics[name] = BagTopic(
+                name=name, type=schema.name if schema else tm.get("type", ""),
+                message_count=counts[name], serialization_format=ch.message_encoding,
+                qos_profiles=tuple(q for q in (qos or []) if isinstance(q, dict)),
+                type_hash=ch.metadata.get("topic_type_hash", "") or tm.get("type_description_hash", ""),
+                schema_text=schema.data.decode(errors="replace") if schema else "")
+        return topics
+
+
+def message_class(type_name: str):
+    """The installed Python class for a type (msg, srv/action parts); BagError TYPE_NOT_INSTALLED."""
+    pkg, kind, name = split_type(type_name)
+    try:
+        module = importlib.import_module(f"{pkg}.{kind}")
+        if kind == "msg":
+            return getattr(module, name)
+        base, _, part = name.partition("_")
+        cls = getattr(module, base)
+        for attr in part.split("_") if part else []:
+            cls = getattr(cls, attr, None) or getattr(cls.Impl, attr + ("Service" if attr in (
+                "SendGoal", "GetResult") else ""))
+        return cls
+    except (ImportError, AttributeError):
+        raise BagError(f"message type '{type_name}' is not installed (no Python module for it); "
+                       f"install its interface package to replay or decode it",
+                       "TYPE_NOT_INSTALLED") from None
+
+
+def check_installed(reader: BagReader, topics: Iterable[str] | None = None) -> None:
+    """Raise TYPE_NOT_INSTALLED naming every topic whose type this machine lacks."""
+    missing = []
+    for name in topics if topics is not None else reader.topics:
+        t = reader.topics[name].type
+        try:
+            message_class(t)
+        except BagError:
+            missing.append(f"{name} ({t})")
+    if missing:
+        raise BagError(f"message types not installed for topics: {', '.join(missing)}",
+                       "TYPE_NOT_INSTALLED")

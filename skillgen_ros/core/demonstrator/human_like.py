@@ -1,0 +1,229 @@
+"""The scripted demonstrator: drives SimWorld's OSC interface the way a person would.
+
+It exists ONLY to produce the shipped source demos (bags/) without a human at a keyboard; it is
+not a policy, never used during generation, and knows privileged object poses. Each demo gets
+its own `DemoStyle` (speed, tremor, pauses, approach direction, aim error) from the demo seed.
+
+Plans are phase by phase and re-read the scene at each phase start, like a person looking
+before moving: grasps are planned from the object's current pose, placements from the measured
+grasp (the object pose in the hand right after lifting). Each step records the observation, then
+the command sent (see record.DemoStep).
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..geometry import Pose
+from ..robot import ARM_JOINTS, TABLE_Z
+from ..tasks import get_task
+from ..tasks.scripted import ScriptParams
+from .motion import DemoStyle, SmoothNoise, down_pose, ee_yaw, nearest_yaw, object_yaw, reach
+from .record import DemoRollout, DemoStep
+
+CONTROL_HZ = 20.0
+NOMINAL = ScriptParams()  # the privileged solver's grasp / place geometry; the person varies around it
+OPEN, CLOSED = -1.0, 1.0
+
+
+class ScriptedDemonstrator:
+    """Runs one human-like demo of a task on a SimWorld; see the module docstring."""
+
+    def __init__(self, task: str, seed: int):
+        self.task = get_task(task)
+        self.seed = int(seed)
+        self.rng = np.random.default_rng([self.seed, 0xDE70])
+        self.style = DemoStyle.sample(self.rng)
+        self.noise = SmoothNoise(self.rng)
+        self.steps: list[DemoStep] = []
+        self.types = {o.id: o.type for o in self.task.objects}
+
+    # ------------------------------------------------------------------ recording
+    def _obs(self, world) -> dict:
+        return dict(time=float(world.time), joint_names=ARM_JOINTS, joint_positions=world.joint_positions().copy(),
+                    ee_pose=world.ee_pose().as_array(), gripper_width=float(world.gripper_width()),
+                    gripper_grasping=bool(world.is_grasping()),
+                    object_poses={k: v.as_array() for k, v in world.object_poses().items()}, object_types=self.types)
+
+    def _send(self, world, target: Pose, gripper: float) -> None:
+        obs = self._obs(world)
+        self.steps.append(DemoStep(target=target.as_array(), gripper_command=float(gripper), **obs))
+        world.step(target, gripper)
+        self.cmd, self.grip = target, gripper
+
+    @staticmethod
+    def frames(world) -> dict[str, Pose]:
+        """Object poses in the task's object frames (what the person sees; privileged here)."""
+        return world.object_poses()
+
+    # ------------------------------------------------------------------ primitives
+    def move(self, world, goal: Pose, seconds: float, tremor: float = 1.0) -> None:
+        """Min-jerk reach from the last command to goal; tremor fades out toward the goal."""
+        n = int(np.ceil(seconds * self.style.speed * self.rng.uniform(0.9, 1.1) * CONTROL_HZ))
+        for k, p in enumerate(reach(self.cmd, goal, n)):
+            fade = np.sin(np.pi * (k + 1) / n) if n > 1 else 0.0
+            self._send(world, Pose(p.position + self.noise(self.style.tremor * tremor) * fade, p.quaternion),
+                       self.grip)
+
+    def hold(self, world, seconds: float) -> None:
+        for _ in range(max(1, int(round(seconds * CONTROL_HZ)))):
+            self._send(world, self.cmd, self.grip)
+
+    def maybe_hesitate(self, world) -> None:
+        if self.rng.random() < self.style.hesitation_prob:
+            self.hold(world, self.rng.uniform(0.15, 0.6))
+
+    def gripper(self, world, command: float, seconds: float = 0.5) -> None:
+        self.grip = command
+        self.hold(world, seconds * self.rng.uniform(1.0, 1.3))
+
+    # ------------------------------------------------------------------ skills
+    def grasp_from_top(self, world, oid: str, point_local, yaw_base: float, yaw_period: float,
+                       depth: float = 0.0) -> None:
+        """Approach above `point_local` of object `oid`, descend, close. yaw: base + k*period."""
+        obj = self.frames(world)[oid]
+        point = obj.rotation.apply(point_local) + obj.position
+        yaw = nearest_yaw(yaw_base, yaw_period, ee_yaw(self.cmd)) + self.style.yaw_error
+        grasp = down_pose(point + [0.0, 0.0, -depth], yaw)
+        h = self.style.approach_height
+        pre = Pose(grasp.position + np.r_[self.style.approach_offset, h], grasp.quaternion)
+        dist = np.linalg.norm(pre.position - self.cmd.position)
+        self.move(world, pre, 0.8 + dist / 0.25)
+        self.maybe_hesitate(world)
+        near = Pose(grasp.position + [0, 0, 0.02], grasp.quaternion)
+        self.move(world, near, 0.6 + h / 0.15, tremor=0.5)
+        self.move(world, grasp, 0.5, tremor=0.2)
+        self.hold(world, 0.2)
+        self.gripper(world, CLOSED, 0.6)
+
+    def lift(self, world, height: float) -> None:
+        up = Pose(np.r_[self.cmd.position[:2], TABLE_Z + height], self.cmd.quaternion)
+        self.move(world, up, 0.5 + abs(height - self.cmd.position[2]) / 0.2, tremor=0.5)
+
+    def object_in_hand(self, world, oid: str) -> np.ndarray:
+        """T_EE^O, measured now (the grasp as it really is)."""
+        return world.ee_pose().inverse().matrix() @ self.frames(world)[oid].matrix()
+
+    def carry_object_to(self, world, oid: str, obj_goal: Pose, T_ee_obj: np.ndarray, seconds: float,
+                        tremor: float = 1.0) -> None:
+        """Move the EE so that the held object reaches obj_goal (through the measured grasp)."""
+        T = obj_goal.matrix() @ np.linalg.inv(T_ee_obj)
+        self.move(world, Pose.from_matrix(T), seconds, tremor)
+
+    def retreat(self, world, dz: float = 0.10) -> None:
+        self.move(world, Pose(self.cmd.position + [0, 0, dz], self.cmd.quaternion), 0.8, tremor=0.5)
+
+    # ------------------------------------------------------------------ tasks
+    def _place_nut(self, world, nut_id: str, peg_id: str, period: float | None) -> None:
+        nut_spec, peg_spec = self.task.object(nut_id), self.task.object(peg_id)
+        self.lift(world, 0.20 + self.rng.uniform(0.0, 0.04))
+        T_en = self.object_in_hand(world, nut_id)
+        nut, peg = self.frames(world)[nut_id], self.frames(world)[peg_id]
+        yaw = object_yaw(nut) if period is None else nearest_yaw(object_yaw(peg), period, object_yaw(nut))
+        R = Rotation.from_euler("z", yaw)
+        ring = R.apply(nut_spec.keypoint("ring_center"))
+        top = peg.rotation.apply(peg_spec.keypoint("top")) + peg.position
+        aim = np.r_[peg.position[:2] + self.style.place_offset, 0.0]
+
+        def nut_at(z_ring: float) -> Pose:
+            return Pose(np.r_[aim[:2], z_ring] - ring, R.as_quat())
+
+        above = nut_at(top[2] + 0.05 + self.rng.uniform(0.0, 0.03))
+        dist = np.linalg.norm(above.position - nut.position)
+        self.carry_object_to(world, nut_id, above, T_en, 1.0 + dist / 0.22)
+        self.hold(world, 0.2)
+        T_en = self.object_in_hand(world, nut_id)  # look again before lowering onto the peg
+        self.carry_object_to(world, nut_id, above, T_en, 0.4, tremor=0.3)
+        self.maybe_hesitate(world)
+        self.carry_object_to(world, nut_id, nut_at(top[2] + 0.01), T_en, 0.8, tremor=0.3)
+        release = nut_at(TABLE_Z + nut_spec.half_extents[2] + NOMINAL.place_drop)
+        self.carry_object_to(world, nut_id, release, T_en, 1.0, tremor=0.2)
+        self.gripper(world, OPEN, 0.5)
+        self.retreat(world)
+
+    def _grasp_nut(self, world, nut_id: str) -> None:
+        nut = self.task.object(nut_id)
+        yaw = object_yaw(self.frames(world)[nut_id])
+        self.grasp_from_top(world, nut_id, nut.keypoint("handle"), yaw, np.pi,
+                            depth=-NOMINAL.grasp_z_offset + self.rng.uniform(-0.002, 0.002))
+
+    def _square(self, world) -> None:
+        self._grasp_nut(world, "square_nut")
+        self._place_nut(world, "square_nut", "square_peg", np.pi / 2)
+
+    def _nut_assembly(self, world) -> None:
+        self._grasp_nut(world, "square_nut")
+        self._place_nut(world, "square_nut", "square_peg", np.pi / 2)
+        self._grasp_nut(world, "round_nut")
+        self._place_nut(world, "round_nut", "round_peg", None)
+
+    def _pick_place(self, world) -> None:
+        milk = self.task.object("milk")
+        m = self.frames(world)["milk"]
+        self.grasp_from_top(world, "milk", milk.keypoint("top"), object_yaw(m), np.pi / 2,
+                            depth=NOMINAL.milk_grasp_depth + self.rng.uniform(0.0, 0.01))
+        self.lift(world, 0.26 + self.rng.uniform(0.0, 0.04))
+        T_em = self.object_in_hand(world, "milk")
+        bin_spec = self.task.object("bin")
+        b = self.frames(world)["bin"]
+        m = self.frames(world)["milk"]
+        R = Rotation.from_euler("z", object_yaw(m))
+        floor = b.rotation.apply(bin_spec.keypoint("floor_center")) + b.position
+        xy = b.position[:2] + self.rng.uniform(-0.02, 0.02, 2)
+        above = Pose(np.r_[xy, floor[2] + 0.06 + milk.half_extents[2] + self.rng.uniform(0.04, 0.07)], R.as_quat())
+        dist = np.linalg.norm(above.position - m.position)
+        self.carry_object_to(world, "milk", above, T_em, 1.0 + dist / 0.22)
+        self.maybe_hesitate(world)
+        low = Pose(np.r_[xy, floor[2] + milk.half_extents[2] + NOMINAL.place_drop], R.as_quat())
+        self.carry_object_to(world, "milk", low, T_em, 1.0, tremor=0.3)
+        self.gripper(world, OPEN, 0.5)
+        self.retreat(world, 0.12)
+
+    def _threading(self, world) -> None:
+        nd = self.task.object("needle")
+        n = self.frames(world)["needle"]
+        self.grasp_from_top(world, "needle", nd.keypoint("handle"), object_yaw(n), np.pi,
+                            depth=-NOMINAL.grasp_z_offset + self.rng.uniform(-0.002, 0.002))
+        self.lift(world, 0.20 + self.rng.uniform(0.0, 0.03))
+        T_en = self.object_in_hand(world, "needle")
+        tp = self.task.object("tripod")
+        t = self.frames(world)["tripod"]
+        n = self.frames(world)["needle"]
+        ring = t.rotation.apply(tp.keypoint("ring_center")) + t.position
+        yaw = nearest_yaw(object_yaw(t), np.pi, object_yaw(n))
+        R = Rotation.from_euler("z", yaw)
+        axis = R.apply([1.0, 0.0, 0.0])
+        tip = R.apply(nd.keypoint("tip"))
+
+        def needle_tip_at(p) -> Pose:
+            return Pose(np.asarray(p) - tip, R.as_quat())
+
+        lat = np.cross([0, 0, 1.0], axis) * self.style.place_offset[0]
+        above = needle_tip_at(ring - axis * 0.07 + lat + [0, 0, 0.06 + self.rng.uniform(0.0, 0.03)])
+        dist = np.linalg.norm(above.position - n.position)
+        self.carry_object_to(world, "needle", above, T_en, 1.0 + dist / 0.22)
+        pre = needle_tip_at(ring - axis * NOMINAL.insert_pre + lat)
+        self.carry_object_to(world, "needle", pre, T_en, 1.0, tremor=0.2)
+        self.hold(world, 0.3)
+        T_en = self.object_in_hand(world, "needle")  # look again: the needle may have shifted in the grasp
+        self.carry_object_to(world, "needle", pre, T_en, 0.5, tremor=0.1)
+        self.maybe_hesitate(world)
+        through = needle_tip_at(ring + axis * NOMINAL.insert_depth + lat)
+        self.carry_object_to(world, "needle", through, T_en, 1.2, tremor=0.1)
+        self.hold(world, 0.5)
+
+    PLANS: dict[str, Callable] = {"Square": _square, "NutAssembly": _nut_assembly, "PickPlace": _pick_place,
+                                  "Threading": _threading}
+
+    def run(self, world, variant: str, scene_seed: int) -> DemoRollout:
+        """Reset `world` to (task, variant, scene_seed), perform the task, return the recorded rollout."""
+        world.reset(self.task.name, variant, scene_seed)
+        self.steps = []
+        self.cmd, self.grip = world.ee_pose(), OPEN
+        self.hold(world, self.rng.uniform(0.3, 0.8))  # the person takes a look first
+        self.PLANS[self.task.name](self, world)
+        self.hold(world, 0.3)
+        return DemoRollout(self.task.name, variant, int(scene_seed), tuple(self.steps), bool(world.task_success()),
+                           self.seed, {"style": repr(self.style)})

@@ -1,0 +1,46 @@
+"""Where a grasped object is: the paper's rigid-attachment assumption, without ground truth.
+
+Perception sees an object on the table before its grasp skill (Algorithm 1 estimates before each
+skill). When the gripper closes, the object stops moving relative to the hand, so its pose from
+then on is T_W^O(t) = T_W^E(t) (T_W^E(grasp))^-1 T_W^O(estimate). Transfer planning uses this to
+attach the object to the hand and to filter its points out of the obstacle cloud.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import Pose, invert
+
+
+class GraspTracker:
+    def __init__(self):
+        self._in_hand: dict[str, np.ndarray] = {}  # object id -> T_E^O (object in the EE frame)
+
+    def clear(self) -> None:
+        self._in_hand.clear()
+
+    def grasped(self, object_id: str, T_W_O_before: np.ndarray, T_W_E_at_grasp: np.ndarray) -> None:
+        self._in_hand = {object_id: invert(np.asarray(T_W_E_at_grasp, float)) @ np.asarray(T_W_O_before, float)}
+
+    def released(self) -> None:
+        self._in_hand.clear()
+
+    def holding(self) -> str | None:
+        return next(iter(self._in_hand), None)
+
+    def object_in_ee(self, object_id: str) -> np.ndarray | None:
+        return self._in_hand.get(object_id)
+
+    def pose_now(self, object_id: str, T_W_E_now: np.ndarray) -> Pose | None:
+        T = self._in_hand.get(object_id)
+        return None if T is None else Pose.from_matrix(np.asarray(T_W_E_now, float) @ T)
+
+
+def grasp_step(gripper_commands: np.ndarray) -> int | None:
+    """Index of the step where the gripper command last switched from open (<= 0) to closed (> 0)
+    and stayed closed to the end; None if the hand ends open."""
+    g = np.asarray(gripper_commands, float)
+    if len(g) == 0 or g[-1] <= 0:
+        return None
+    opened = np.flatnonzero(g <= 0)
+    return int(opened[-1] + 1) if len(opened) else 0

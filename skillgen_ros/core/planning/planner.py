@@ -1,0 +1,229 @@
+"""MotionPlanner: the paper's three phases per query -- retreat, transit/transfer, approach.
+
+    kin = PandaKinematics(); cm = CollisionModel(kin); cm.set_boxes(boxes)
+    planner = MotionPlanner(kin, IKSolver(kin), cm)
+    res = planner.plan(q_now, target_pose, Mode.TRANSIT, manipulated="cube", timeout=2.0)
+    if res.status is PlanStatus.SUCCESS: execute(res.trajectory)
+
+1. Retreat: 5 cm back along the gripper's -z from the start (Cartesian line).
+2. Transit (empty hand) or transfer (with `attached` in the hand): RRT-Connect in joint space
+   from the retreat's end to the pre-approach configuration, then shortcutting.
+3. Approach: 5 cm along the gripper's +z to the target (computed backwards from the goal IK).
+During retreat and approach the hand may touch the manipulated object, and the held object may
+touch its support; transit and transfer allow no contact. The whole path is timed with ruckig.
+The result is a complete immutable value: status, trajectory, joint path, phase timings.
+"""
+from __future__ import annotations
+
+import enum
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from ..geometry import Pose, validate_pose
+from .collision import AllowedContacts, AttachedObject, CollisionModel
+from .ik import IKSolver
+from .kinematics import PandaKinematics
+from .phases import CartesianPathError, cartesian_line
+from .rrt import JointSpaceRRT, RRTStatus
+from .timing import JointTrajectory, time_parameterize
+
+
+class PlanStatus(enum.IntEnum):
+    """Values match skillgen_interfaces/srv/PlanToPose."""
+
+    SUCCESS = 0
+    IK_FAILED = 1
+    START_IN_COLLISION = 2
+    GOAL_IN_COLLISION = 3
+    PLAN_TIMEOUT = 4
+    INVALID_REQUEST = 5
+
+
+class Mode(enum.Enum):
+    TRANSIT = "transit"
+    TRANSFER = "transfer"
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    status: PlanStatus
+    trajectory: JointTrajectory | None = None
+    joint_path: np.ndarray = field(default_factory=lambda: np.empty((0, 7)))
+    # (phase, first index, last index) into joint_path
+    segments: tuple = ()
+    timings: dict = field(default_factory=dict)
+    message: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.status is PlanStatus.SUCCESS
+
+
+def _shift_z(T: np.ndarray, d: float) -> np.ndarray:
+    S = np.eye(4)
+    S[2, 3] = d
+    return T @ S
+
+
+class MotionPlanner:
+    def __init__(self, kin: PandaKinematics, ik: IKSolver, collision: CollisionModel,
+                 retreat_distance: float = 0.05, approach_distance: float = 0.05,
+                 dt: float = 0.01, ik_timeout: float = 0.05,
+                 ik_solutions: int = 4, velocity_scale: float = 1.0, seed: int | None = None):
+        self.kin, self.ik, self.cm = kin, ik, collision
+        self.retreat_distance = float(retreat_distance)
+        self.approach_distance = float(approach_distance)
+        self.dt = float(dt)
+        self.ik_timeout = float(ik_timeout)
+        self.ik_solutions = int(ik_solutions)
+        self.velocity_scale = float(velocity_scale)
+        self.seed = seed
+        self.rrt = JointSpaceRRT(kin.lower, kin.upper)
+
+    def plan(self, start_q, target: Pose, mode: Mode = Mode.TRANSIT,
+             attached: AttachedObject | None = None, manipulated: str | None = None,
+             released: str | None = None, start_support: str | None = "table", goal_support: str | None = "table",
+             timeout: float = 5.0, retreat: bool = True, approach: bool = True) -> PlanResult:
+        """Plan from `start_q` to the EE pose `target`. See the module docstring.
+
+        manipulated: object the hand may touch on the approach (transit: about to be grasped);
+        released: object the hand may touch on the retreat (just put down; default manipulated).
+        start_support/goal_support: what the held object may touch when lifted from / put down on
+        (a box name or "table"), transfer only.
+        """
+        t_all = time.perf_counter()
+        timings: dict[str, float] = {}
+        try:
+            q0 = self.kin._check(start_q)
+            target = validate_pose(target.position, target.quaternion, "target")
+            if timeout <= 0 or not np.isfinite(timeout):
+                raise InvalidInputError(f"timeout must be > 0, got {timeout}")
+            mode = Mode(mode)
+            if mode is Mode.TRANSFER and attached is None:
+                raise InvalidInputError("transfer needs an attached object")
+        except (InvalidInputError, ValueError) as e:
+            return PlanResult(PlanStatus.INVALID_REQUEST, message=str(e), timings=timings)
+        if mode is Mode.TRANSIT:
+            attached = None
+            allow_start = AllowedContacts(hand_object=released or manipulated)
+            allow_goal = AllowedContacts(hand_object=manipulated)
+        else:
+            allow_start = AllowedContacts(hand_object=start_support, support=start_support)
+            allow_goal = AllowedContacts(hand_object=goal_support, support=goal_support)
+
+        def fail(status, msg):
+            timings["total"] = time.perf_counter() - t_all
+            return PlanResult(status, timings=timings, message=msg)
+
+        def collides(Q, allow=AllowedContacts()):
+            return self.cm.in_collision(Q, attached, allow)
+
+        def edge_free(a, b, allow=AllowedContacts()):
+            return self.cm.check_motion(a, b, attached, allow)
+
+        if not self.kin.within_limits(q0, tol=1e-6):
+            return fail(PlanStatus.INVALID_REQUEST, "start configuration outside joint limits")
+        q0 = np.clip(q0, self.kin.lower, self.kin.upper)
+        if collides(q0[None], allow_start)[0]:
+            return fail(PlanStatus.START_IN_COLLISION, "start configuration collides")
+
+        # goal IK: first without collisions (reachability), then filter
+        t = time.perf_counter()
+        T_goal = target.matrix()
+        ik_res = self.ik.solve(T_goal, seed_q=q0, timeout=self.ik_timeout,
+                               max_solutions=self.ik_solutions)
+        timings["ik"] = time.perf_counter() - t
+        if not ik_res.solutions:
+            return fail(PlanStatus.IK_FAILED, "no IK solution for the target pose")
+        # Candidate goals in rounds: the reachability solutions that are collision-free, then a
+        # collision-aware IK for more (distinct) solutions if none of those admits an approach.
+        checked_ik = IKSolver(self.kin, lambda Q: collides(Q, allow_goal), batch=self.ik.batch,
+                              rng=self.ik.rng)
+        rounds = (
+            lambda: [q for q in ik_res.solutions if not collides(q[None], allow_goal)[0]],
+            lambda: list(checked_ik.solve(T_goal, seed_q=q0, timeout=2 * self.ik_timeout,
+                                          max_solutions=3 * self.ik_solutions).solutions),
+        )
+
+        # retreat
+        t = time.perf_counter()
+        retreat_path = q0[None]
+        notes = []
+        if retreat and self.retreat_distance > 0:
+            why = None
+            try:
+                retreat_path = cartesian_line(self.kin, self.ik, q0, -self.retreat_distance)
+                if not self._segment_free(retreat_path, edge_free, allow_start):
+                    why = "retreat collides"
+            except CartesianPathError as e:
+                why = f"retreat: {e}"
+            if why is not None:
+                # A start that is free without any allowed contact can go straight to transit.
+                if collides(q0[None])[0]:
+                    return fail(PlanStatus.START_IN_COLLISION, why)
+                retreat_path = q0[None]
+                notes.append(f"{why}; retreat skipped (start is clear)")
+        timings["retreat"] = time.perf_counter() - t
+
+        # approach, computed backwards from each goal candidate until one is clear
+        t = time.perf_counter()
+        approach_path, blocked, kinematic, n_goals, tried = None, 0, "", 0, []
+        for next_round in rounds:
+            for qg in next_round():
+                if any(np.abs(qg - q).max() < 1e-3 for q in tried):
+                    continue
+                tried.append(qg)
+                n_goals += 1
+                if approach and self.approach_distance > 0:
+                    try:
+                        path = cartesian_line(self.kin, self.ik, qg, -self.approach_distance)[::-1]
+                    except CartesianPathError as e:
+                        kinematic = f"approach: {e}"
+                        continue
+                else:
+                    path = qg[None]
+                if collides(path[:1])[0] or not self._segment_free(path, edge_free, allow_goal):
+                    blocked += 1
+                    continue
+                approach_path = path
+                break
+            if approach_path is not None:
+                break
+        timings["approach"] = time.perf_counter() - t
+        if approach_path is None:
+            if n_goals == 0:
+                return fail(PlanStatus.GOAL_IN_COLLISION, "every IK solution for the target collides")
+            if blocked:
+                return fail(PlanStatus.GOAL_IN_COLLISION, f"approach blocked for {blocked} of "
+                            f"{n_goals} collision-free goal IK solutions")
+            return fail(PlanStatus.IK_FAILED, f"no goal IK solution admits the straight approach "
+                        f"({kinematic})")
+
+        # transit / transfer
+        t = time.perf_counter()
+        q_a, q_b = retreat_path[-1], approach_path[0]
+        if collides(q_a[None])[0]:
+            return fail(PlanStatus.START_IN_COLLISION, "the retreat ends in collision")
+        remaining = max(1e-3, timeout - (time.perf_counter() - t_all))
+        res = self.rrt.plan(q_a, q_b, collides, edge_free, remaining, seed=self.seed)
+        timings[mode.value] = time.perf_counter() - t
+        if res.status is not RRTStatus.SOLVED:
+            return fail(PlanStatus.PLAN_TIMEOUT, f"{mode.value}: {res.status.value} after {remaining:.2f} s")
+
+        path = np.vstack([retreat_path, res.path[1:], approach_path[1:]])
+        n_r, n_t = len(retreat_path), len(res.path)
+        segments = (("retreat", 0, n_r - 1), (mode.value, n_r - 1, n_r + n_t - 2),
+                    ("approach", n_r + n_t - 2, len(path) - 1))
+        t = time.perf_counter()
+        traj = time_parameterize(path, self.dt, scale=self.velocity_scale)
+        timings["parameterize"] = time.perf_counter() - t
+        timings["total"] = time.perf_counter() - t_all
+        return PlanResult(PlanStatus.SUCCESS, traj, path, segments, timings,
+                          "; ".join([f"{len(path)} waypoints, {traj.duration:.2f} s"] + notes))
+
+    @staticmethod
+    def _segment_free(path: np.ndarray, edge_free, allow) -> bool:
+        return all(edge_free(a, b, allow) for a, b in zip(path[:-1], path[1:]))

@@ -1,0 +1,8 @@
+"""Task suite: object specs and meshes, reset distributions (D0/D1/D2/clutter), success, skills.
+
+Pure (no pybullet, no rclpy): the mock driver, perception and the planner import it freely.
+"""
+from .spec import (MAX_SEED, ObjectSpec, Region, SceneDescription, SkillSpec, TaskSpec,  # noqa: F401
+                   validate_seed)
+from .suite import TASK_NAMES, get_task, regions_markdown  # noqa: F401
+from ..errors import UnknownTaskError, UnknownVariantError  # noqa: F401

@@ -1,0 +1,177 @@
+"""Typed task descriptions: objects, skills, reset regions (D0/D1/D2/clutter), scene description.
+
+A task is data (objects with meshes, a skill list, per-variant reset regions) plus one success
+predicate over object poses. Keeping the predicate a pure function of poses lets the kinematic
+mock driver and the physics driver answer `task_success` the same way.
+
+Object frames: the origin is the centre of the object's axis-aligned bounding box in its own
+frame, z up when the object rests upright, so a resting object's world z is `half_extents[2]`
+above the table top (TABLE_Z).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Mapping
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..errors import InvalidInputError, SkillGenError, UnknownVariantError
+from ..geometry import Pose
+from ..robot import TABLE_Z
+from .shapes import Part
+
+MAX_SEED = 2**32 - 1
+SEPARATION_MARGIN = 0.01  # metres between the bounding circles of two sampled objects
+SYMMETRIES = ("none", "z2", "z4", "z_continuous")
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    """A rigid object or fixture. mesh_path: OBJ in the object frame; half_extents: AABB half size."""
+
+    id: str
+    type: str
+    mesh_path: str
+    half_extents: tuple[float, float, float]
+    is_fixture: bool
+    symmetry: str
+    mass: float
+    parts: tuple[Part, ...] = field(repr=False, default=())
+    color: tuple[float, float, float, float] = (0.6, 0.6, 0.6, 1.0)
+    friction: float = 1.0
+    keypoints: tuple[tuple[str, tuple[float, float, float]], ...] = field(repr=False, default=())
+
+    def keypoint(self, name: str) -> np.ndarray:
+        """A named point in the object frame (e.g. "handle", "ring_center", "tip")."""
+        for k, v in self.keypoints:
+            if k == name:
+                return np.array(v, dtype=float)
+        raise InvalidInputError(f"object {self.id} has no keypoint {name!r}")
+
+    @property
+    def footprint_radius(self) -> float:
+        """Radius of the circle around the origin that covers the object seen from above."""
+        return float(np.hypot(self.half_extents[0], self.half_extents[1]))
+
+
+@dataclass(frozen=True)
+class SkillSpec:
+    """One skill segment: the object it manipulates and how the arm moves before it.
+
+    mode: "transit" (free arm) or "transfer" (carrying attached_object) for the motion that
+    precedes the skill, as in the paper's Transit/Transfer primitives.
+    """
+
+    index: int
+    object_id: str
+    name: str
+    mode: str
+    attached_object: str | None = None
+
+
+@dataclass(frozen=True)
+class Region:
+    """Reset region of one object: world x/y ranges of its origin (m) and its yaw range (rad)."""
+
+    x: tuple[float, float]
+    y: tuple[float, float]
+    yaw: tuple[float, float] = (0.0, 0.0)
+
+    def sample(self, rng: np.random.Generator) -> tuple[float, float, float]:
+        return (float(rng.uniform(*self.x)), float(rng.uniform(*self.y)), float(rng.uniform(*self.yaw)))
+
+    def contains(self, pose: Pose, tol: float = 1e-6) -> bool:
+        """True if the pose's xy lies in the box and its yaw (about world z) in the yaw range."""
+        x, y = pose.position[:2]
+        yaw = float(Rotation.from_quat(pose.quaternion).as_euler("ZYX")[0])
+        lo, hi = self.yaw
+        # compare yaw modulo 2*pi against the range
+        k = np.round(((lo + hi) / 2 - yaw) / (2 * np.pi))
+        yaw = yaw + 2 * np.pi * k
+        return (self.x[0] - tol <= x <= self.x[1] + tol and self.y[0] - tol <= y <= self.y[1] + tol
+                and lo - 1e-6 <= yaw <= hi + 1e-6)
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """A task: objects, skills, variants and their reset regions, and the success predicate.
+
+    `objects` are present in every variant; `obstacle` (if any) is added in the "clutter" variant.
+    """
+
+    name: str
+    objects: tuple[ObjectSpec, ...]
+    skills: tuple[SkillSpec, ...]
+    variants: tuple[str, ...]
+    region_table: Mapping[str, Mapping[str, Region]] = field(repr=False, default_factory=dict)
+    success_fn: Callable[[Mapping[str, Pose]], bool] | None = field(repr=False, default=None)
+    obstacle: ObjectSpec | None = None
+
+    def _check_variant(self, variant: str) -> None:
+        if variant not in self.variants:
+            raise UnknownVariantError(f"task {self.name} has no variant {variant!r}; known: {list(self.variants)}")
+
+    def objects_for(self, variant: str) -> tuple[ObjectSpec, ...]:
+        """Objects present in the scene of this variant (adds the obstacle for "clutter")."""
+        self._check_variant(variant)
+        return self.objects + ((self.obstacle,) if variant == "clutter" and self.obstacle else ())
+
+    def object(self, object_id: str) -> ObjectSpec:
+        for o in self.objects + ((self.obstacle,) if self.obstacle else ()):
+            if o.id == object_id:
+                return o
+        raise InvalidInputError(f"task {self.name} has no object {object_id!r}")
+
+    def regions(self, variant: str) -> dict[str, Region]:
+        """The documented reset region of every object in this variant (docs/tasks.md)."""
+        self._check_variant(variant)
+        return dict(self.region_table[variant])
+
+    def sample_reset(self, variant: str, rng: np.random.Generator) -> dict[str, Pose]:
+        """Sample object poses: uniform in each region, bounding circles kept apart (rejection)."""
+        objs = self.objects_for(variant)
+        regions = self.regions(variant)
+        for _ in range(500):
+            placed: dict[str, Pose] = {}
+            ok = True
+            for o in objs:
+                for _ in range(100):
+                    x, y, yaw = regions[o.id].sample(rng)
+                    if all(np.hypot(x - p.position[0], y - p.position[1])
+                           >= o.footprint_radius + self.object(k).footprint_radius + SEPARATION_MARGIN
+                           for k, p in placed.items()):
+                        placed[o.id] = Pose([x, y, TABLE_Z + o.half_extents[2]],
+                                            Rotation.from_euler("z", yaw).as_quat())
+                        break
+                else:
+                    ok = False
+                    break
+            if ok:
+                return placed
+        raise SkillGenError(f"{self.name}/{variant}: could not sample a collision-free reset", "RESET_FAILED")
+
+    def is_success(self, poses: Mapping[str, Pose]) -> bool:
+        """The task's success predicate, evaluated on world poses of its objects."""
+        return bool(self.success_fn(poses)) if self.success_fn else False
+
+
+@dataclass(frozen=True)
+class SceneDescription:
+    """What reset_scene returns: the objects present and their poses (true poses in the sim)."""
+
+    task: str
+    variant: str
+    seed: int
+    objects: tuple[ObjectSpec, ...]
+    poses: Mapping[str, Pose]
+    joint_positions: np.ndarray
+
+
+def validate_seed(seed) -> int:
+    """Seeds are integers in [0, 2**32 - 1] (numpy's seed range); anything else is INVALID_SEED."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise InvalidInputError(f"seed must be an integer, got {seed!r}", "INVALID_SEED")
+    if not 0 <= int(seed) <= MAX_SEED:
+        raise InvalidInputError(f"seed {seed} outside [0, {MAX_SEED}]", "INVALID_SEED")
+    return int(seed)

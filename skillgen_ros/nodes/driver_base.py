@@ -1,0 +1,353 @@
+"""The robot-driver ROS interface shared by sim_driver and mock_driver.
+
+Both drivers expose the same topics, services and actions (docs/architecture.md); only the world
+behind them differs (core.sim.SimWorld: pybullet physics; core.sim.mock.MockWorld: kinematic).
+Timing modes (parameter timing_mode):
+- realtime: a wall-clock timer advances one control period per 1/control_hz, tracking the latest
+  osc_target (or the active trajectory); stamps are wall time.
+- lockstep: the world advances one control period per received osc_target, or after
+  lockstep_timeout_s of wall time without one (holding the last command). While an
+  execute_trajectory / gripper_command goal runs, the action advances the world itself. /clock
+  carries the world time, and every stamp is world time.
+Bad input never stops the driver: services answer with a reason code, actions with an error code,
+and rejected osc_target messages are logged and published as "REASON: message" on driver/errors;
+the robot keeps its previous command. Targets more than 0.10 m outside the workspace box are
+rejected (OUT_OF_WORKSPACE), nearer ones clamped onto it (core/sim/commands.py).
+"""
+from __future__ import annotations
+
+import threading
+import time
+from typing import Callable
+
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import Header, String
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PoseStamped
+
+from skillgen_interfaces.action import ExecuteTrajectory, Gripper
+from skillgen_interfaces.msg import GripperState, ObjectPose, ObjectPoseArray, OscTarget, SceneObject
+from skillgen_interfaces.srv import ResetScene, TaskSuccess
+from skillgen_ros.core.errors import ParameterError, SkillGenError
+from skillgen_ros.core.geometry import Pose
+from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
+from skillgen_ros.core.sim.camera import CameraConfig
+from skillgen_ros.core.sim.commands import TrajectoryCode, TrajectoryError, validate_gripper, validate_osc_target
+from skillgen_ros.nodes import convert
+
+PARAMS = {  # name: (default, description)
+    "timing_mode": ("lockstep", "realtime (wall-clock timer) or lockstep (one period per osc_target / timeout)"),
+    "lockstep_timeout_s": (0.5, "lockstep: wall seconds without osc_target after which one period advances anyway"),
+    "control_hz": (20.0, "control period rate (OSC targets, joint_states, ee_pose)"),
+    "frame_id": ("world", "frame of every pose (the robot base is at its origin)"),
+    "cameras": (["front", "wrist"], "cameras to render and publish"),
+    "camera_hz": (10.0, "camera publish rate (rounded to a divisor of control_hz); <= 0 turns cameras off"),
+    "front_width": (128, "front camera width (px)"), "front_height": (128, "front camera height (px)"),
+    "front_fov_deg": (55.0, "front camera vertical field of view"),
+    "wrist_width": (96, "wrist camera width (px)"), "wrist_height": (96, "wrist camera height (px)"),
+    "wrist_fov_deg": (70.0, "wrist camera vertical field of view"),
+    "depth_noise_base": (0.0, "depth noise sigma = base + quadratic * z^2 (m)"),
+    "depth_noise_quadratic": (0.0, "depth noise quadratic coefficient (1/m)"),
+    "depth_dropout": (0.0, "probability a depth pixel is missing"),
+    "publish_points": (True, "publish camera/<name>/points (PointCloud2, world frame)"),
+    "initial_task": ("", "task to reset to at startup ('' = empty scene until reset_scene)"),
+    "initial_variant": ("D0", "variant for initial_task"),
+    "initial_seed": (0, "seed for initial_task"),
+}
+RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+GRIPPER_WAIT_S = 1.5
+
+
+class DriverNode(Node):
+    """ROS shell over a world object (SimWorld or MockWorld); see the module docstring."""
+
+    def __init__(self, name: str, make_world: Callable[[Callable], object], extra_params: dict | None = None):
+        super().__init__(name)
+        for pname, (default, desc) in {**PARAMS, **(extra_params or {})}.items():
+            self.declare_parameter(pname, default, ParameterDescriptor(description=desc))
+        self.mode = self.param("timing_mode")
+        if self.mode not in ("realtime", "lockstep"):
+            raise ParameterError(f"timing_mode must be realtime or lockstep, got {self.mode!r}")
+        self.hz = float(self.param("control_hz"))
+        if not self.hz > 0:
+            raise ParameterError("control_hz must be > 0")
+        if not float(self.param("lockstep_timeout_s")) > 0:
+            raise ParameterError("lockstep_timeout_s must be > 0")
+        self.frame = self.param("frame_id")
+        self.camera_names = [c for c in self.param("cameras") if c]
+        cam_hz = float(self.param("camera_hz"))
+        self.camera_every = max(1, int(round(self.hz / cam_hz))) if cam_hz > 0 else 0  # 0: cameras off
+        self.world = make_world(self.param)
+        self.lock = threading.RLock()
+        self.period = 0
+        self.busy = False           # an action is driving the world (lockstep) or a trajectory runs
+        self._pending: tuple[Pose, float] | None = None
+        self._last_step_wall = time.monotonic()
+        self._types: dict[str, str] = {}
+
+        cb = ReentrantCallbackGroup()
+        self.pub_js = self.create_publisher(convert.JointState, "joint_states", RELIABLE)
+        self.pub_ee = self.create_publisher(PoseStamped, "ee_pose", RELIABLE)
+        self.pub_grip = self.create_publisher(GripperState, "gripper_state", RELIABLE)
+        self.pub_gt = self.create_publisher(ObjectPoseArray, "sim/ground_truth/object_poses", LATCHED)
+        self.pub_err = self.create_publisher(String, "driver/errors", RELIABLE)
+        self.pub_clock = self.create_publisher(Clock, "/clock", RELIABLE) if self.mode == "lockstep" else None
+        self.cam_pubs = {n: {"points": self.create_publisher(convert.PointCloud2, f"camera/{n}/points",
+                                                             qos_profile_sensor_data),
+                             "image": self.create_publisher(Image, f"camera/{n}/image", qos_profile_sensor_data),
+                             "depth": self.create_publisher(Image, f"camera/{n}/depth", qos_profile_sensor_data),
+                             "camera_info": self.create_publisher(CameraInfo, f"camera/{n}/camera_info",
+                                                                  qos_profile_sensor_data),
+                             "pose": self.create_publisher(PoseStamped, f"camera/{n}/pose", qos_profile_sensor_data)}
+                         for n in self.camera_names}
+        self.create_subscription(OscTarget, "osc_target", self._on_target, RELIABLE,
+                                 callback_group=MutuallyExclusiveCallbackGroup())
+        self.create_service(ResetScene, "reset_scene", self._on_reset, callback_group=cb)
+        self.create_service(TaskSuccess, "task_success", self._on_success, callback_group=cb)
+        self.traj_server = ActionServer(self, ExecuteTrajectory, "execute_trajectory", self._exec_traj,
+                                        goal_callback=self._one_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT,
+                                        callback_group=cb)
+        self.grip_server = ActionServer(self, Gripper, "gripper_command", self._exec_gripper,
+                                        goal_callback=self._one_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT,
+                                        callback_group=cb)
+        wall_period = 1.0 / self.hz if self.mode == "realtime" else min(0.05, float(self.param("lockstep_timeout_s")))
+        self.create_timer(wall_period, self._on_timer, callback_group=MutuallyExclusiveCallbackGroup())
+        if self.param("initial_task"):
+            try:
+                scene = self.world.reset(self.param("initial_task"), self.param("initial_variant"),
+                                         self.param("initial_seed"))
+                self._types = {o.id: o.type for o in scene.objects}
+            except SkillGenError as e:
+                raise ParameterError(f"initial scene: {e}")
+        self._publish(cameras=bool(self.camera_every))
+        self.get_logger().info(f"{name} up: {self.mode}, {self.hz:g} Hz, cameras {self.camera_names}")
+
+    def param(self, name: str):
+        return self.get_parameter(name).value
+
+    # ----------------------------------------------------------------- stepping
+    def _stamp(self) -> Time:
+        if self.mode == "lockstep":
+            t = self.world.time
+            return Time(sec=int(t), nanosec=int(round((t - int(t)) * 1e9)) % 1_000_000_000)
+        return self.get_clock().now().to_msg()
+
+    def _advance(self, fn) -> None:
+        """Run one control period (fn does it on the world), then publish the new state."""
+        with self.lock:
+            fn()
+            self.period += 1
+            self._last_step_wall = time.monotonic()
+            self._publish(cameras=bool(self.camera_every) and self.period % self.camera_every == 0)
+
+    def _on_target(self, msg: OscTarget) -> None:
+        try:
+            target = validate_osc_target(*convert.pose_arrays_from_msg(msg.pose))
+            grip = validate_gripper(msg.gripper)
+        except SkillGenError as e:
+            return self._report(e)
+        if self.busy:
+            return self._report(SkillGenError("osc_target ignored while an action drives the robot", "BUSY"))
+        if self.mode == "lockstep":
+            self._advance(lambda: self.world.step(target, grip))
+        else:
+            self._pending = (target, grip)
+
+    def _on_timer(self) -> None:
+        if self.mode == "realtime":
+            if self.busy:
+                return  # the running action advances the world on its own schedule
+            pending, self._pending = self._pending, None
+            self._advance((lambda: self.world.step(*pending)) if pending else (lambda: self.world.idle(1)))
+        elif not self.busy and time.monotonic() - self._last_step_wall >= float(self.param("lockstep_timeout_s")):
+            self._advance(lambda: self.world.idle(1))
+
+    def _report(self, e: SkillGenError) -> None:
+        self.get_logger().warning(str(e), throttle_duration_sec=1.0)
+        self.pub_err.publish(String(data=str(e)))
+
+    def _wait_period(self, t0: float, k: int) -> None:
+        """Realtime actions keep the wall-clock schedule; lockstep ones run as fast as they can."""
+        if self.mode == "realtime":
+            delay = t0 + k / self.hz - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+
+    # ----------------------------------------------------------------- publishing
+    def _publish(self, cameras: bool) -> None:
+        w, stamp = self.world, self._stamp()
+        header = Header(frame_id=self.frame, stamp=stamp)
+        if self.pub_clock is not None:
+            self.pub_clock.publish(Clock(clock=stamp))
+        q = np.concatenate([w.joint_positions(), w.finger_positions()])
+        qd = np.concatenate([w.joint_velocities(), np.zeros(2)])
+        self.pub_js.publish(convert.joint_state(ARM_JOINTS + FINGER_JOINTS, q, qd, stamp=stamp))
+        self.pub_ee.publish(convert.pose_stamped(w.ee_pose(), self.frame, stamp))
+        self.pub_grip.publish(GripperState(header=header, width=float(w.gripper_width()),
+                                           command=float(w.gripper_command), grasping=bool(w.is_grasping())))
+        if w.scene is not None:
+            self.pub_gt.publish(ObjectPoseArray(header=header, objects=[
+                ObjectPose(id=oid, type=self._types[oid], pose=convert.pose_to_msg(p), confidence=1.0)
+                for oid, p in w.object_poses().items()]))
+        if cameras:
+            for n in self.camera_names:
+                self._publish_camera(n, stamp)
+
+    def _publish_camera(self, name: str, stamp: Time) -> None:
+        f = self.world.render(name)
+        pubs, h, wd = self.cam_pubs[name], f.depth.shape[0], f.depth.shape[1]
+        optical = Header(frame_id=f"camera_{name}_optical", stamp=stamp)
+        pubs["image"].publish(Image(header=optical, height=h, width=wd, encoding="rgb8", step=3 * wd,
+                                    data=np.ascontiguousarray(f.rgb, np.uint8).tobytes()))
+        pubs["depth"].publish(Image(header=optical, height=h, width=wd, encoding="32FC1", step=4 * wd,
+                                    data=np.ascontiguousarray(f.depth, np.float32).tobytes()))
+        K = f.K
+        P = np.hstack([K, np.zeros((3, 1))])
+        pubs["camera_info"].publish(CameraInfo(header=optical, height=h, width=wd, distortion_model="plumb_bob",
+                                               d=[0.0] * 5, k=K.reshape(-1).tolist(), r=np.eye(3).reshape(-1).tolist(),
+                                               p=P.reshape(-1).tolist()))
+        pubs["pose"].publish(convert.pose_stamped(Pose.from_matrix(f.T_world_camera), self.frame, stamp))
+        if self.param("publish_points"):
+            pts = f.points_world
+            organized = pts.shape[:2] if pts.ndim == 3 else None
+            rgb = f.rgb.reshape(-1, 3) if organized else None
+            pubs["points"].publish(convert.points_to_cloud(pts.reshape(-1, 3), self.frame, stamp, rgb=rgb,
+                                                           organized_shape=organized))
+
+    # ----------------------------------------------------------------- services
+    def _on_reset(self, req: ResetScene.Request, res: ResetScene.Response) -> ResetScene.Response:
+        try:
+            with self.lock:
+                scene = self.world.reset(req.task, req.variant, int(req.seed))
+                self._types = {o.id: o.type for o in scene.objects}
+                self._publish(cameras=bool(self.camera_every))
+        except SkillGenError as e:
+            res.success, res.reason_code, res.message = False, e.reason, str(e)
+            self._report(e)
+            return res
+        except Exception as e:  # noqa: BLE001 - report, keep serving
+            res.success, res.reason_code, res.message = False, "INTERNAL_ERROR", repr(e)
+            return res
+        res.success, res.reason_code, res.message = True, "OK", f"{req.task}/{req.variant} seed {req.seed}"
+        res.objects = [SceneObject(id=o.id, type=o.type, mesh_uri=o.mesh_path, half_extents=list(o.half_extents),
+                                   has_pose=True, pose=convert.pose_to_msg(scene.poses[o.id]), is_fixture=o.is_fixture)
+                       for o in scene.objects]
+        res.joint_state = convert.joint_state(ARM_JOINTS, scene.joint_positions)
+        return res
+
+    def _on_success(self, req: TaskSuccess.Request, res: TaskSuccess.Response) -> TaskSuccess.Response:
+        with self.lock:
+            scene = self.world.scene
+            res.task = scene.task if scene else ""
+            res.success = bool(self.world.task_success()) if scene else False
+            res.message = "no scene: call reset_scene first" if scene is None else "ok"
+        return res
+
+    # ----------------------------------------------------------------- actions
+    def _one_goal(self, _goal) -> GoalResponse:
+        return GoalResponse.REJECT if self.busy else GoalResponse.ACCEPT
+
+    def _exec_traj(self, handle) -> ExecuteTrajectory.Result:
+        result = ExecuteTrajectory.Result()
+        names, times, pos, vel = convert.trajectory_from_msg(handle.request.trajectory)
+        try:
+            with self.lock:
+                self.world.start_trajectory(names, times, pos, vel, handle.request.goal_tolerance)
+                self.busy = True
+        except TrajectoryError as e:
+            self._report(e)
+            handle.abort()
+            result.error_code, result.error_string = int(e.code), str(e)
+            return result
+        except SkillGenError as e:
+            self._report(e)
+            handle.abort()
+            result.error_code, result.error_string = int(TrajectoryCode.INVALID_GOAL), str(e)
+            return result
+        t0, k, fb = time.monotonic(), 0, ExecuteTrajectory.Feedback()
+        try:
+            while True:
+                if handle.is_cancel_requested:
+                    with self.lock:
+                        self.world.step(self.world.ee_pose(), None)  # hold where it is
+                    handle.canceled()
+                    result.error_code, result.error_string = int(TrajectoryCode.PATH_TOLERANCE_VIOLATED), "canceled"
+                    return result
+                out = {}
+                try:
+                    self._advance(lambda: out.update(r=self.world.step_trajectory()))
+                except SkillGenError as e:  # e.g. reset_scene while the trajectory ran
+                    self._report(e)
+                    handle.abort()
+                    result.error_code, result.error_string = int(TrajectoryCode.PATH_TOLERANCE_VIOLATED), str(e)
+                    return result
+                progress, q_des, done = out["r"]
+                fb.progress, fb.desired_positions = float(progress), [float(v) for v in q_des]
+                fb.actual_positions = [float(v) for v in self.world.joint_positions()]
+                handle.publish_feedback(fb)
+                if done is not None:
+                    result.error_code, result.error_string = int(done.code), done.message
+                    handle.succeed() if done.code == TrajectoryCode.SUCCESSFUL else handle.abort()
+                    return result
+                k += 1
+                self._wait_period(t0, k)
+        finally:
+            self.busy = False
+
+    def _exec_gripper(self, handle) -> Gripper.Result:
+        result, g = Gripper.Result(), handle.request
+        try:
+            with self.lock:
+                self.world.gripper_to(g.position, g.max_effort if g.max_effort > 0 else 20.0)
+                self.busy = True
+        except SkillGenError as e:
+            self._report(e)
+            handle.abort()
+            result.width = float(self.world.gripper_width())
+            return result
+        t0, k, last = time.monotonic(), 0, -1.0
+        try:
+            while k < GRIPPER_WAIT_S * self.hz:
+                self._advance(lambda: self.world.idle(1))
+                width = float(self.world.gripper_width())
+                handle.publish_feedback(Gripper.Feedback(width=width))
+                if abs(width - last) < 2e-4:
+                    break
+                last, k = width, k + 1
+                self._wait_period(t0, k)
+        finally:
+            self.busy = False
+        width = float(self.world.gripper_width())
+        result.width, result.reached_goal = width, abs(width - min(max(g.position, 0.0), 0.08)) < 0.005
+        result.stalled = not result.reached_goal
+        handle.succeed()
+        return result
+
+    def destroy_node(self):
+        self.traj_server.destroy()
+        self.grip_server.destroy()
+        self.world.close()
+        super().destroy_node()
+
+
+def camera_configs(param) -> tuple[CameraConfig, ...]:
+    """CameraConfig per name in the `cameras` parameter, from the <name>_* parameters."""
+    out = []
+    for n in param("cameras"):
+        if not n:
+            continue
+        if n not in ("front", "wrist"):
+            raise ParameterError(f"unknown camera {n!r} (front, wrist)")
+        out.append(CameraConfig(n, int(param(f"{n}_width")), int(param(f"{n}_height")), float(param(f"{n}_fov_deg")),
+                                noise_base=float(param("depth_noise_base")),
+                                noise_quadratic=float(param("depth_noise_quadratic")),
+                                dropout=float(param("depth_dropout"))))
+    return tuple(out)

@@ -1,0 +1,226 @@
+"""Interface conformance of sim_driver and mock_driver: the same topics, types, services, actions,
+the same answers to bad input, and the driver keeps running with the robot where it was."""
+from __future__ import annotations
+
+import select
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from skillgen_ros import rosenv  # noqa: F401
+
+import rclpy
+from rclpy.action import ActionClient, get_action_names_and_types
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from conftest import REPO
+from geometry_msgs.msg import Point, Pose as PoseMsg, PoseStamped, Quaternion
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from skillgen_interfaces.action import ExecuteTrajectory, Gripper
+from skillgen_interfaces.msg import ObjectPoseArray, OscTarget
+from skillgen_interfaces.srv import ResetScene, TaskSuccess
+from skillgen_ros.core.robot import ARM_JOINTS, Q_HOME
+from skillgen_ros.nodes.convert import trajectory_to_msg
+
+EXPECTED_TOPICS = {
+    "/joint_states": "sensor_msgs/msg/JointState",
+    "/ee_pose": "geometry_msgs/msg/PoseStamped",
+    "/gripper_state": "skillgen_interfaces/msg/GripperState",
+    "/sim/ground_truth/object_poses": "skillgen_interfaces/msg/ObjectPoseArray",
+    "/osc_target": "skillgen_interfaces/msg/OscTarget",
+    "/clock": "rosgraph_msgs/msg/Clock",
+    "/driver/errors": "std_msgs/msg/String",
+    **{f"/camera/{c}/{k}": t for c in ("front", "wrist") for k, t in
+       (("points", "sensor_msgs/msg/PointCloud2"), ("image", "sensor_msgs/msg/Image"),
+        ("depth", "sensor_msgs/msg/Image"), ("camera_info", "sensor_msgs/msg/CameraInfo"),
+        ("pose", "geometry_msgs/msg/PoseStamped"))},
+}
+EXPECTED_SERVICES = {"/reset_scene": "skillgen_interfaces/srv/ResetScene",
+                     "/task_success": "skillgen_interfaces/srv/TaskSuccess"}
+EXPECTED_ACTIONS = {"/execute_trajectory": "skillgen_interfaces/action/ExecuteTrajectory",
+                    "/gripper_command": "skillgen_interfaces/action/Gripper"}
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class Client:
+    """A small in-test client of the driver interface."""
+
+    def __init__(self):
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx)
+        self.node = rclpy.create_node("driver_test_client", context=self.ctx)
+        self.exe = rclpy.executors.SingleThreadedExecutor(context=self.ctx)
+        self.exe.add_node(self.node)
+        self.last: dict = {}
+        self.errors: list[str] = []
+        for topic, typ in (("ee_pose", PoseStamped), ("joint_states", JointState), ("/clock", Clock)):
+            self.node.create_subscription(typ, topic, lambda m, t=topic: self.last.__setitem__(t, m), 10)
+        self.node.create_subscription(ObjectPoseArray, "sim/ground_truth/object_poses",
+                                      lambda m: self.last.__setitem__("gt", m), LATCHED)
+        self.node.create_subscription(String, "driver/errors", lambda m: self.errors.append(m.data), 10)
+        self.pub = self.node.create_publisher(OscTarget, "osc_target", 10)
+        self.reset_cli = self.node.create_client(ResetScene, "reset_scene")
+        self.success_cli = self.node.create_client(TaskSuccess, "task_success")
+        self.traj = ActionClient(self.node, ExecuteTrajectory, "execute_trajectory")
+        self.grip = ActionClient(self.node, Gripper, "gripper_command")
+
+    def spin_until(self, pred, timeout=10.0) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            self.exe.spin_once(timeout_sec=0.02)
+            if pred():
+                return True
+        return bool(pred())
+
+    def call(self, cli, req, timeout=20.0):
+        assert cli.wait_for_service(timeout_sec=timeout)
+        fut = cli.call_async(req)
+        assert self.spin_until(fut.done, timeout)
+        return fut.result()
+
+    def reset(self, task, variant, seed):
+        return self.call(self.reset_cli, ResetScene.Request(task=task, variant=variant, seed=seed))
+
+    def send_goal(self, client, goal, timeout=30.0):
+        assert client.wait_for_server(timeout_sec=10.0)
+        fut = client.send_goal_async(goal)
+        assert self.spin_until(fut.done, timeout)
+        gh = fut.result()
+        assert gh.accepted
+        res = gh.get_result_async()
+        assert self.spin_until(res.done, timeout)
+        return res.result().result
+
+    def ee(self) -> np.ndarray:
+        p = self.last["ee_pose"].pose.position
+        return np.array([p.x, p.y, p.z])
+
+    def q(self) -> np.ndarray:
+        return np.array(self.last["joint_states"].position[:7])
+
+    def target(self, xyz, quat=(1.0, 0.0, 0.0, 0.0), gripper=-1.0):
+        msg = OscTarget(pose=PoseMsg(position=Point(x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2])),
+                                     orientation=Quaternion(x=float(quat[0]), y=float(quat[1]), z=float(quat[2]),
+                                                            w=float(quat[3]))), gripper=gripper)
+        msg.header.frame_id = "world"
+        self.pub.publish(msg)
+
+    def close(self):
+        self.exe.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.ctx)
+
+
+@pytest.fixture
+def client(ros_domain):
+    c = Client()
+    yield c
+    c.close()
+
+
+def _graph(client):
+    n = client.node
+    topics = dict((k, v[0]) for k, v in n.get_topic_names_and_types())
+    services = dict((k, v[0]) for k, v in n.get_service_names_and_types())
+    actions = dict((k, v[0]) for k, v in get_action_names_and_types(n))
+    return topics, services, actions
+
+
+@pytest.mark.parametrize("exe", ["mock_driver", "sim_driver"])
+def test_driver_interface_and_bad_input(exe, start_node, client):
+    proc = start_node(exe, params=str(REPO / "params" / f"{exe}.yaml"))
+    # --- conformance: names and types
+    assert client.spin_until(lambda: all(t in _graph(client)[0] for t in EXPECTED_TOPICS)
+                             and all(a in _graph(client)[2] for a in EXPECTED_ACTIONS), 20.0), _graph(client)
+    topics, services, actions = _graph(client)
+    for name, typ in EXPECTED_TOPICS.items():
+        assert topics[name] == typ, name
+    for name, typ in EXPECTED_SERVICES.items():
+        assert services.get(name) == typ, name
+    for name, typ in EXPECTED_ACTIONS.items():
+        assert actions.get(name) == typ, name
+
+    # --- reset and ground truth
+    res = client.reset("Square", "D0", 0)
+    assert res.success and res.reason_code == "OK"
+    assert sorted(o.id for o in res.objects) == ["square_nut", "square_peg"]
+    assert all(o.mesh_uri.endswith(".obj") and len(o.half_extents) == 3 and o.has_pose for o in res.objects)
+    assert client.spin_until(lambda: "gt" in client.last and len(client.last["gt"].objects) == 2)
+    assert client.call(client.success_cli, TaskSuccess.Request()).success is False
+
+    # --- bad reset requests: clear reason codes
+    for (task, variant, seed), reason in ((("Nope", "D0", 0), "UNKNOWN_TASK"), (("Square", "D9", 0), "UNKNOWN_VARIANT"),
+                                          (("Square", "D0", -1), "INVALID_SEED"),
+                                          (("Square", "D0", 2**40), "INVALID_SEED")):
+        r = client.reset(task, variant, seed)
+        assert not r.success and r.reason_code == reason, (task, variant, seed, r.reason_code)
+
+    # --- lockstep: one osc_target advances exactly one control period
+    assert client.spin_until(lambda: "ee_pose" in client.last and "joint_states" in client.last)
+    ee0 = client.ee()
+    client.last.pop("/clock", None)
+    client.target(ee0)
+    assert client.spin_until(lambda: "/clock" in client.last)
+    t1 = client.last["/clock"].clock.sec + client.last["/clock"].clock.nanosec * 1e-9
+    client.target(ee0)
+    assert client.spin_until(lambda: abs(client.last["/clock"].clock.sec + client.last["/clock"].clock.nanosec * 1e-9
+                                         - t1 - 0.05) < 1e-6)
+
+    # --- bad OSC targets: NaN, inf, far outside the workspace -> reported, robot stays
+    ee0, q0 = client.ee(), client.q()
+    n_err = len(client.errors)
+    client.target([np.nan, 0.0, 0.3])
+    client.target([0.4, np.inf, 0.3])
+    client.target([5.0, 0.0, 0.3])
+    assert client.spin_until(lambda: len(client.errors) >= n_err + 3)
+    assert "INVALID_INPUT" in client.errors[n_err] and "OUT_OF_WORKSPACE" in client.errors[n_err + 2]
+    client.spin_until(lambda: False, 0.6)  # lockstep timeout may advance the world holding its command
+    assert np.linalg.norm(client.ee() - ee0) < 2e-3 and np.max(np.abs(client.q() - q0)) < 5e-3
+
+    # --- bad trajectories: wrong joint names, non-monotonic times, over-limit velocities
+    q = client.q()
+    bad = [
+        (trajectory_to_msg(["a", "b", "c", "d", "e", "f", "g"], [0.5], [q]), ExecuteTrajectory.Result.INVALID_JOINTS),
+        (trajectory_to_msg(ARM_JOINTS, [0.5, 0.4], [q, q]), ExecuteTrajectory.Result.INVALID_GOAL),
+        (trajectory_to_msg(ARM_JOINTS, [0.5], [q], [np.full(7, 10.0)]), ExecuteTrajectory.Result.INVALID_GOAL),
+        (trajectory_to_msg(ARM_JOINTS, [0.05], [q + 0.5]), ExecuteTrajectory.Result.INVALID_GOAL),
+    ]
+    for traj, code in bad:
+        r = client.send_goal(client.traj, ExecuteTrajectory.Goal(trajectory=traj))
+        assert r.error_code == code, (r.error_code, r.error_string)
+    client.spin_until(lambda: False, 0.3)
+    assert np.max(np.abs(client.q() - q0)) < 5e-3
+
+    # --- a valid trajectory and gripper command succeed
+    q_goal = np.array(Q_HOME) + np.array([0.1, 0.0, 0.0, 0.05, 0.0, 0.0, 0.0])
+    r = client.send_goal(client.traj, ExecuteTrajectory.Goal(trajectory=trajectory_to_msg(ARM_JOINTS, [1.0], [q_goal])))
+    assert r.error_code == ExecuteTrajectory.Result.SUCCESSFUL, r.error_string
+    assert client.spin_until(lambda: np.max(np.abs(client.q() - q_goal)) < 0.02)
+    g = client.send_goal(client.grip, Gripper.Goal(position=0.04, max_effort=20.0))
+    assert abs(g.width - 0.04) < 0.005 and g.reached_goal
+    assert proc.proc.poll() is None, "driver died"
+
+
+def test_mock_driver_starts_fast(start_node, ros_domain):
+    """Spawn to "up" log line. Budget 1 s on an idle machine; the bound here leaves room for a loaded
+    CI box (importing scipy.spatial, via core.geometry, alone takes 0.4-1.2 s)."""
+    t0 = time.monotonic()
+    proc = start_node("mock_driver", params=str(REPO / "params" / "mock_driver.yaml")).proc
+    up = None
+    while time.monotonic() - t0 < 10.0:
+        ready, _, _ = select.select([proc.stdout], [], [], 0.1)
+        if ready:
+            line = proc.stdout.readline()
+            if "mock_driver up" in line:
+                up = time.monotonic() - t0
+                break
+    assert up is not None and up < 3.0, up
+    code = ("import sys; from skillgen_ros.nodes import mock_driver, driver_base; from skillgen_ros.core.sim import mock;"
+            "mock.MockWorld().reset('Square', 'D0', 0); print('pybullet' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
+    assert out.stdout.strip() == "False", out.stdout + out.stderr

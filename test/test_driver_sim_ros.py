@@ -1,0 +1,96 @@
+"""sim_driver over ROS 2: the scripted solution driven through osc_target topics in lockstep reaches
+task success; realtime mode advances on the wall clock; lockstep advances after its timeout."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from skillgen_ros import rosenv  # noqa: F401
+
+from skillgen_interfaces.msg import OscTarget
+from skillgen_interfaces.srv import TaskSuccess
+from skillgen_ros.core.geometry import Pose
+from skillgen_ros.core.tasks import get_task, scripted
+from skillgen_ros.nodes.convert import pose_from_msg, pose_to_msg
+from test_driver_interface import Client, client  # noqa: F401  (fixture)
+
+# parameters come from the node's defaults (same values as params/sim_driver.yaml) plus -p overrides:
+# a --params-file given after -p would override them.
+
+
+class RosEnv:
+    """The scripted solver's env protocol over the driver's topics (ground truth for object poses)."""
+
+    control_hz = 20.0
+
+    def __init__(self, c: Client, task: str, variant: str, seed: int):
+        self.c = c
+        res = c.reset(task, variant, seed)
+        assert res.success, res.message
+        spec = get_task(task)
+        self.scene = type("Scene", (), {"task": task, "objects": spec.objects_for(variant)})()
+        assert c.spin_until(lambda: "gt" in c.last and "ee_pose" in c.last)
+        self.n_ee = 0
+        c.node.create_subscription(type(c.last["ee_pose"]), "ee_pose", self._count, 10)
+
+    def _count(self, _m):
+        self.n_ee += 1
+
+    def ee_pose(self) -> Pose:
+        return pose_from_msg(self.c.last["ee_pose"].pose)
+
+    def object_poses(self) -> dict:
+        return {o.id: pose_from_msg(o.pose) for o in self.c.last["gt"].objects}
+
+    def step(self, pose: Pose, gripper: float) -> None:
+        n = self.n_ee
+        self.c.pub.publish(OscTarget(pose=pose_to_msg(pose), gripper=float(gripper)))
+        # the period's ee_pose and its ground truth (same stamp) must both have arrived
+        assert self.c.spin_until(lambda: self.n_ee > n and self.c.last["gt"].header.stamp
+                                 == self.c.last["ee_pose"].header.stamp, 10.0)
+
+    def task_success(self) -> bool:
+        return self.c.call(self.c.success_cli, TaskSuccess.Request()).success
+
+
+def test_scripted_solution_over_ros_lockstep(start_node, client):  # noqa: F811
+    start_node("sim_driver", "--ros-args", "-p", "camera_hz:=0.0", "-p", "lockstep_timeout_s:=30.0")
+    assert client.reset_cli.wait_for_service(timeout_sec=20.0)
+    env = RosEnv(client, "PickPlace", "D0", 0)
+    assert not env.task_success()
+    result = scripted.solve(env)
+    assert result.success
+
+
+def test_lockstep_timeout_and_realtime_clock(start_node, client):  # noqa: F811
+    # lockstep: no commands -> one period per lockstep_timeout_s (0.25 s here)
+    proc = start_node("sim_driver", "--ros-args", "-p", "camera_hz:=0.0", "-p", "lockstep_timeout_s:=0.25")
+    assert client.spin_until(lambda: "/clock" in client.last, 20.0)
+    t_first = client.last["/clock"].clock
+    w0 = time.monotonic()
+    client.spin_until(lambda: False, 1.6)
+    t_last = client.last["/clock"].clock
+    periods = round(((t_last.sec - t_first.sec) + (t_last.nanosec - t_first.nanosec) * 1e-9) / 0.05)
+    expected = (time.monotonic() - w0) / 0.25
+    assert abs(periods - expected) <= 2, (periods, expected)
+    proc.stop()
+
+
+def test_realtime_mode_follows_wall_clock(start_node, client):  # noqa: F811
+    start_node("sim_driver", "--ros-args", "-p", "timing_mode:=realtime", "-p", "camera_hz:=0.0",
+               "-p", "initial_task:=Square")
+    assert client.spin_until(lambda: "ee_pose" in client.last, 20.0)
+    stamps = []
+    client.node.create_subscription(type(client.last["ee_pose"]), "ee_pose",
+                                    lambda m: stamps.append(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9), 50)
+    client.spin_until(lambda: False, 2.0)
+    rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
+    assert 15.0 < rate < 25.0, rate
+    ee0 = client.ee()
+    goal = ee0 + np.array([0.05, 0.05, -0.05])
+    end = time.monotonic() + 2.0
+    while time.monotonic() < end:  # stream the target at about 20 Hz, as a real client would
+        client.target(goal)
+        client.spin_until(lambda: False, 0.05)
+    assert np.linalg.norm(client.ee() - goal) < 0.01

@@ -1,0 +1,166 @@
+"""planner node as its own process: codes for good and bad requests, markers, execution, and
+the node keeps serving after bad input."""
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.action import ActionServer
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
+from sensor_msgs.msg import JointState, PointCloud2
+from skillgen_interfaces.action import ExecuteTrajectory
+from skillgen_interfaces.msg import SceneObject
+from skillgen_interfaces.srv import PlanToPose
+from visualization_msgs.msg import MarkerArray
+
+from conftest import wait_for
+from skillgen_ros.core.planning.kinematics import PandaKinematics
+from skillgen_ros.core.robot import ARM_JOINTS, Q_HOME
+from skillgen_ros.nodes import convert
+
+PARAMS = str(Path(__file__).resolve().parents[1] / "params" / "planner.yaml")
+LATCHED = QoSProfile(depth=1, reliability=QoSReliabilityPolicy.RELIABLE,
+                     durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+
+
+@pytest.fixture
+def client(ros_domain, start_node):
+    planner = start_node("planner", params=PARAMS)
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=ros_domain)
+    node = rclpy.create_node("planner_test", context=ctx)
+    ex = MultiThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    threading.Thread(target=ex.spin, daemon=True).start()
+    yield node, planner
+    ex.shutdown()
+    node.destroy_node()
+    rclpy.shutdown(context=ctx)
+
+
+def _cube(name, xyz, half):
+    o = SceneObject(id=name, type="box", half_extents=list(half), has_pose=True)
+    o.pose.position.x, o.pose.position.y, o.pose.position.z = xyz
+    o.pose.orientation.w = 1.0
+    return o
+
+
+def _request(xyz, quat=(1.0, 0.0, 0.0, 0.0), **kw):
+    req = PlanToPose.Request()
+    req.target.header.frame_id = "world"
+    req.target.pose.position.x, req.target.pose.position.y, req.target.pose.position.z = xyz
+    (req.target.pose.orientation.x, req.target.pose.orientation.y,
+     req.target.pose.orientation.z, req.target.pose.orientation.w) = quat
+    req.start_positions = [float(v) for v in Q_HOME]
+    req.timeout = 5.0
+    for k, v in kw.items():
+        setattr(req, k, v)
+    return req
+
+
+def _call(cli, req, timeout=30.0):
+    fut = cli.call_async(req)
+    assert wait_for(fut.done, timeout)
+    return fut.result()
+
+
+def test_codes_markers_and_still_serving(client):
+    node, planner = client
+    cli = node.create_client(PlanToPose, "plan_to_pose")
+    assert cli.wait_for_service(timeout_sec=90.0), planner.stop()
+    markers = []
+    node.create_subscription(MarkerArray, "planner/path_markers", markers.append, LATCHED)
+    scene = [_cube("cube", (0.5, 0.0, 0.05), (0.05, 0.05, 0.05))]
+
+    def code(req):
+        t = time.monotonic()
+        r = _call(cli, req)
+        return r.status, time.monotonic() - t, r
+
+    s, dt, _ = code(_request((np.nan, 0.0, 0.3), objects=scene))
+    assert s == PlanToPose.Response.INVALID_REQUEST and dt < 2.0
+    s, dt, _ = code(_request((0.5, 0.0, 0.3), quat=(0.0, 0.0, 0.0, 2.0)))
+    assert s == PlanToPose.Response.INVALID_REQUEST and dt < 2.0
+    s, dt, _ = code(_request((2.0, 0.0, 0.5)))
+    assert s == PlanToPose.Response.IK_FAILED and dt < 2.0
+    s, dt, r = code(_request((0.5, 0.0, 0.05)))  # inside the cube (scene kept from the first call)
+    assert s == PlanToPose.Response.GOAL_IN_COLLISION and dt < 2.0, r.message
+    s, dt, r = code(_request((0.4, 0.25, 0.2)))
+    assert s == PlanToPose.Response.SUCCESS, r.message
+    assert r.status_name == "SUCCESS" and list(r.trajectory.joint_names) == list(ARM_JOINTS)
+    names, times, pos, _ = convert.trajectory_from_msg(r.trajectory)
+    assert np.all(np.diff(times) > 0) and np.allclose(pos[0], Q_HOME, atol=1e-9)
+    assert {t.phase for t in r.timings} >= {"ik", "retreat", "transit", "approach", "total"}
+    assert wait_for(lambda: markers, 5.0)
+    assert any(m.points for m in markers[-1].markers)
+    # point-cloud source with no cloud received: an empty cloud, i.e. no obstacles
+    s, dt, r = code(_request((0.5, 0.0, 0.12), collision_source=PlanToPose.Request.SOURCE_POINT_CLOUD))
+    assert s == PlanToPose.Response.SUCCESS, r.message
+    # transfer needs the attached object to be known
+    s, dt, r = code(_request((0.4, 0.2, 0.3), mode=PlanToPose.Request.TRANSFER, attached_object="nope"))
+    assert s == PlanToPose.Response.INVALID_REQUEST
+    assert planner.proc.poll() is None  # still alive after all of it
+
+
+def test_start_from_joint_states_and_execute(client):
+    node, planner = client
+    js = node.create_publisher(JointState, "joint_states", 10)
+    received = []
+
+    def execute(goal_handle):
+        received.append(goal_handle.request.trajectory)
+        if len(received) > 1:  # the second execution fails on the driver side
+            goal_handle.abort()
+            return ExecuteTrajectory.Result(error_code=ExecuteTrajectory.Result.PATH_TOLERANCE_VIOLATED,
+                                            error_string="tracking error")
+        goal_handle.succeed()
+        return ExecuteTrajectory.Result(error_code=ExecuteTrajectory.Result.SUCCESSFUL)
+
+    ActionServer(node, ExecuteTrajectory, "execute_trajectory", execute)
+    cli = node.create_client(PlanToPose, "plan_to_pose")
+    assert cli.wait_for_service(timeout_sec=90.0)
+    req = _request((0.45, -0.2, 0.25), execute=True)
+    req.start_positions = []
+    r = _call(cli, req)
+    assert r.status == PlanToPose.Response.INVALID_REQUEST  # no joint_states yet
+    assert wait_for(lambda: js.get_subscription_count() > 0, 10)
+    msg = JointState(name=list(ARM_JOINTS) + ["panda_finger_joint1"], position=list(Q_HOME) + [0.04])
+    for _ in range(5):
+        js.publish(msg)
+        time.sleep(0.05)
+    r = _call(cli, req)
+    assert r.status == PlanToPose.Response.SUCCESS, r.message
+    assert len(received) == 1 and len(received[0].points) == len(r.trajectory.points)
+    r = _call(cli, req)
+    assert r.status == PlanToPose.Response.EXECUTION_FAILED and "tracking error" in r.message
+
+
+def test_point_cloud_source_and_transfer(client):
+    node, planner = client
+    cli = node.create_client(PlanToPose, "plan_to_pose")
+    assert cli.wait_for_service(timeout_sec=90.0)
+    # an obstacle cloud (latched, like perception's) around the target blocks it
+    pub = node.create_publisher(PointCloud2, "perception/obstacles", LATCHED)
+    g = np.linspace(-0.04, 0.04, 9)
+    blob = np.stack(np.meshgrid(g, g, g), -1).reshape(-1, 3) + [0.45, 0.2, 0.15]
+    pub.publish(convert.points_to_cloud(blob, "world"))
+    src = PlanToPose.Request.SOURCE_POINT_CLOUD
+    assert wait_for(lambda: pub.get_subscription_count() > 0, 10)
+    time.sleep(0.5)
+    r = _call(cli, _request((0.45, 0.2, 0.15), collision_source=src))
+    assert r.status == PlanToPose.Response.GOAL_IN_COLLISION, r.message
+    r = _call(cli, _request((0.45, -0.2, 0.2), collision_source=src))
+    assert r.status == PlanToPose.Response.SUCCESS, r.message
+    # transfer: a cube held between the fingers at Q_HOME is carried to a new pose
+    T0 = PandaKinematics().fk(Q_HOME)
+    held = _cube("cube", tuple(T0[:3, 3]), (0.02, 0.02, 0.02))
+    wall = _cube("wall", (0.45, 0.0, 0.15), (0.1, 0.01, 0.15))
+    r = _call(cli, _request((0.45, 0.2, 0.2), mode=PlanToPose.Request.TRANSFER,
+                            attached_object="cube", objects=[held, wall]))
+    assert r.status == PlanToPose.Response.SUCCESS, r.message
+    assert any(t.phase == "transfer" for t in r.timings)

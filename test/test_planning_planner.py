@@ -1,0 +1,146 @@
+"""MotionPlanner: around a wall, transfer clearance, straight retreat/approach, status codes."""
+import time
+
+import numpy as np
+import pytest
+
+from skillgen_ros.core.geometry import Pose
+from skillgen_ros.core.planning.collision import AttachedObject, Box, CollisionModel
+from skillgen_ros.core.planning.ik import IKSolver
+from skillgen_ros.core.planning.kinematics import PandaKinematics
+from skillgen_ros.core.planning.phases import line_deviation, orientation_deviation
+from skillgen_ros.core.planning.planner import Mode, MotionPlanner, PlanStatus
+from skillgen_ros.core.robot import A_MAX, Q_HOME, V_MAX
+
+DOWN = np.array([1.0, 0.0, 0.0, 0.0])  # gripper z pointing down
+
+
+def _box(name, xyz, half):
+    T = np.eye(4)
+    T[:3, 3] = xyz
+    return Box(name, T, np.asarray(half, float))
+
+
+@pytest.fixture(scope="module")
+def setup():
+    kin = PandaKinematics()
+    cm = CollisionModel(kin)
+    return kin, cm, MotionPlanner(kin, IKSolver(kin, rng=0), cm, seed=1)
+
+
+def _box_points(box: Box, n: int = 7) -> np.ndarray:
+    """Dense samples of a box's volume (for ground-truth checks independent of the spheres)."""
+    g = np.linspace(-1, 1, n)
+    P = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3) * box.half_extents
+    return P @ box.pose[:3, :3].T + box.pose[:3, 3]
+
+
+def test_plans_around_a_wall(setup):
+    kin, cm, planner = setup
+    wall = _box("wall", [0.5, 0.0, 0.25], [0.12, 0.015, 0.25])
+    cm.set_boxes([wall])
+    cm.set_point_cloud(np.empty((0, 3)))
+    start = planner.ik.solve(Pose([0.5, -0.25, 0.15], DOWN).matrix(), seed_q=Q_HOME, timeout=0.5).solutions[0]
+    res = planner.plan(start, Pose([0.5, 0.25, 0.15], DOWN), Mode.TRANSIT, timeout=5.0)
+    assert res.status is PlanStatus.SUCCESS, res.message
+    # a straight joint-space move would hit the wall: the planner had to go around
+    assert cm.in_collision(start + np.linspace(0, 1, 50)[:, None] * (res.joint_path[-1] - start)).any()
+    # dense check of the timed trajectory with a finer resolution than the planner used
+    dense = np.vstack([a + np.linspace(0, 1, 40)[:, None] * (b - a)
+                       for a, b in zip(res.trajectory.positions[:-1], res.trajectory.positions[1:])])
+    assert not cm.in_collision(dense).any()
+    # the EE itself never enters the (unpadded) wall
+    ee = kin.fk_batch(dense)[:, :3, 3]
+    assert not wall.contains(ee).any()
+    np.testing.assert_allclose(kin.fk(res.joint_path[-1])[:3, 3], [0.5, 0.25, 0.15], atol=1e-4)
+    # within the Panda's limits
+    assert np.all(np.abs(res.trajectory.velocities) <= V_MAX + 1e-6)
+    assert np.all(np.abs(res.trajectory.accelerations) <= A_MAX + 1e-6)
+    assert {"ik", "retreat", "transit", "approach", "parameterize", "total"} <= res.timings.keys()
+
+
+def test_retreat_and_approach_are_straight_5cm_moves_along_gripper_z(setup):
+    kin, cm, planner = setup
+    cm.set_boxes([])
+    start = planner.ik.solve(Pose([0.45, -0.2, 0.1], DOWN).matrix(), seed_q=Q_HOME, timeout=0.5).solutions[0]
+    target = Pose([0.4, 0.2, 0.12], DOWN)
+    res = planner.plan(start, target, Mode.TRANSIT, timeout=5.0)
+    assert res.ok, res.message
+    seg = {name: (a, b) for name, a, b in res.segments}
+    for phase, sign in (("retreat", -1.0), ("approach", +1.0)):
+        a, b = seg[phase]
+        Q = res.joint_path[a:b + 1]
+        dense = np.vstack([p + np.linspace(0, 1, 25)[:, None] * (q - p) for p, q in zip(Q[:-1], Q[1:])])
+        T0, T1 = kin.fk(Q[0]), kin.fk(Q[-1])
+        assert line_deviation(kin, T0, dense).max() < 1.5e-3  # straight within 1.5 mm
+        step = T1[:3, 3] - T0[:3, 3]
+        np.testing.assert_allclose(step, sign * 0.05 * T0[:3, 2], atol=1e-4)  # 5 cm along z
+        assert orientation_deviation(kin, T0, dense).max() < 1.5e-3  # orientation held
+    np.testing.assert_allclose(kin.fk(res.joint_path[-1])[:3, 3], target.position, atol=1e-4)
+
+
+def test_transfer_keeps_the_attached_object_clear(setup):
+    kin, cm, planner = setup
+    block = _box("block", [0.5, 0.0, 0.15], [0.1, 0.04, 0.15])
+    cm.set_boxes([block])
+    start = planner.ik.solve(Pose([0.5, -0.25, 0.25], DOWN).matrix(), seed_q=Q_HOME, timeout=0.5).solutions[0]
+    below = np.eye(4)
+    below[2, 3] = 0.08  # a 10 cm tall object hanging below the fingers
+    obj = AttachedObject.from_box("bar", [0.02, 0.02, 0.05], below)
+    res = planner.plan(start, Pose([0.5, 0.25, 0.25], DOWN), Mode.TRANSFER, attached=obj,
+                       timeout=5.0)
+    assert res.ok, res.message
+    assert "transfer" in res.timings
+    dense = np.vstack([a + np.linspace(0, 1, 20)[:, None] * (b - a)
+                       for a, b in zip(res.trajectory.positions[:-1], res.trajectory.positions[1:])])
+    local = _box_points(Box("bar", below, [0.02, 0.02, 0.05]))
+    for T in kin.fk_batch(dense):
+        pts = local @ T[:3, :3].T + T[:3, 3]
+        assert not block.contains(pts).any()
+        assert np.all(pts[:, 2] > 0.0)  # and above the table
+    cm.set_boxes([])
+
+
+def test_bad_requests_get_codes_fast(setup):
+    kin, cm, planner = setup
+    cube = _box("cube", [0.5, 0.0, 0.05], [0.05, 0.05, 0.05])
+    cm.set_boxes([cube])
+    cases = [
+        (Pose([2.0, 0.0, 0.5], DOWN), PlanStatus.IK_FAILED),
+        (Pose([0.5, 0.0, 0.05], DOWN), PlanStatus.GOAL_IN_COLLISION),  # inside the cube
+        (Pose([np.nan, 0.0, 0.3], DOWN), PlanStatus.INVALID_REQUEST),
+        (Pose([0.5, 0.0, 0.3], [0.0, 0.0, 0.0, 2.0]), PlanStatus.INVALID_REQUEST),
+    ]
+    for target, expected in cases:
+        t = time.perf_counter()
+        res = planner.plan(Q_HOME, target, Mode.TRANSIT, timeout=5.0)
+        assert res.status is expected, (target, res.message)
+        assert time.perf_counter() - t < 1.0
+    assert planner.plan(Q_HOME, Pose([0.5, 0, 0.3], DOWN), Mode.TRANSFER).status is PlanStatus.INVALID_REQUEST
+    # a start inside an obstacle
+    cm.set_boxes([_box("blob", kin.link_poses(Q_HOME)["panda_link4"][:3, 3], [0.05] * 3)])
+    assert planner.plan(Q_HOME, Pose([0.4, 0.2, 0.3], DOWN)).status is PlanStatus.START_IN_COLLISION
+    cm.set_boxes([])
+    # an empty cloud means no obstacles
+    cm.set_point_cloud(np.empty((0, 3)))
+    assert planner.plan(Q_HOME, Pose([0.4, 0.2, 0.3], DOWN)).ok
+
+
+def test_grasp_approach_may_touch_only_the_manipulated_object(setup):
+    kin, cm, planner = setup
+    cube = _box("cube", [0.5, 0.1, 0.025], [0.025, 0.025, 0.025])
+    other = _box("other", [0.5, -0.2, 0.05], [0.03, 0.03, 0.05])
+    cm.set_boxes([cube, other])
+    cm.set_point_cloud(np.empty((0, 3)))
+    grasp = Pose([0.5, 0.1, 0.03], DOWN)  # EE between the fingertips, inside the cube's box
+    assert planner.plan(Q_HOME, grasp).status is PlanStatus.GOAL_IN_COLLISION
+    res = planner.plan(Q_HOME, grasp, manipulated="cube", timeout=5.0)
+    assert res.ok, res.message
+    # contact was tolerated on the approach only: the transit never touches the cube
+    a, b = next((a, b) for name, a, b in res.segments if name == "transit")
+    Q = np.vstack([cm.motion_samples(p, q) for p, q in zip(res.joint_path[a:b], res.joint_path[a + 1:b + 1])])
+    assert not cm.in_collision(Q).any()
+    # another object is never allowed
+    inside_other = Pose([0.5, -0.2, 0.06], DOWN)
+    assert planner.plan(Q_HOME, inside_other, manipulated="cube").status is PlanStatus.GOAL_IN_COLLISION
+    cm.set_boxes([])

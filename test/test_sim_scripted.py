@@ -1,0 +1,27 @@
+"""Every task/variant: success is false at reset and true after the privileged scripted solution,
+driven only through the OSC interface (SimWorld.step with absolute EE targets + gripper).
+One seed per variant keeps the suite fast; bench/sim_driver reports rates over more seeds."""
+from __future__ import annotations
+
+import pytest
+
+from skillgen_ros.core.sim import SimWorld
+from skillgen_ros.core.tasks import TASK_NAMES, get_task, scripted
+
+CASES = [(t, v) for t in TASK_NAMES for v in get_task(t).variants]
+
+
+@pytest.fixture(scope="module")
+def world():
+    w = SimWorld()
+    yield w
+    w.close()
+
+
+@pytest.mark.parametrize("task,variant", CASES)
+def test_scripted_solution_through_osc(world, task, variant):
+    world.reset(task, variant, 0)
+    assert not world.task_success()
+    result = scripted.solve(world)
+    assert result.success, world.object_poses()
+    assert result.steps == len(result.actions) and result.steps < 600

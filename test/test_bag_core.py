@@ -5,7 +5,6 @@ back byte-identical data.
 """
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import sys
@@ -101,7 +100,10 @@ def test_roundtrip_rosbags_and_mcap_byte_identical(tmp_path, compression):
                 assert schema.encoding == "ros2msg" and channel.message_encoding == "cdr"
                 raw.append((channel.topic, bytes(m.data), m.log_time))
     assert raw == msgs
-    assert [(m.topic, m.data, m.log_time_ns) for m in BagReader(bag).messages()] == msgs
+    ours = BagReader(bag)
+    assert [(m.topic, m.data, m.log_time_ns) for m in ours.messages()] == msgs
+    first_js = next(ours.messages(["/joint_states"]))
+    assert list(ours.decode(first_js).name) == [f"j{k}" for k in range(7)]  # from the bag's schema
 
 
 def test_reader_without_metadata_and_bare_mcap(tmp_path):

@@ -140,3 +140,9 @@ def test_ground_truth_mode_is_explicit(start_node, ros_node):
     res = call(ros_node)
     assert {p.id: round(p.pose.position.x, 6) for p in res.poses} == {"square_nut": 0.5, "square_peg": 0.6}
     assert all(p.confidence == 1.0 for p in res.poses)
+
+
+def test_unknown_task_parameter_exits_with_a_reason(start_node):
+    proc = _start(start_node, "task:=NoSuchTask")
+    assert proc.proc.wait(timeout=30) == 2
+    assert "UNKNOWN_TASK" in proc.stop()

@@ -127,7 +127,7 @@ def test_start_from_joint_states_and_execute(client):
     req = _request((0.45, -0.2, 0.25), execute=True)
     req.start_positions = []
     r = _call(cli, req)
-    assert r.status == PlanToPose.Response.INVALID_REQUEST  # no joint_states yet
+    assert r.status == PlanToPose.Response.INVALID_REQUEST, r.message  # no joint_states yet
     assert wait_for(lambda: js.get_subscription_count() > 0, 10)
     msg = JointState(name=list(ARM_JOINTS) + ["panda_finger_joint1"], position=list(Q_HOME) + [0.04])
     for _ in range(5):
@@ -135,9 +135,9 @@ def test_start_from_joint_states_and_execute(client):
         time.sleep(0.05)
     r = _call(cli, req)
     assert r.status == PlanToPose.Response.SUCCESS, r.message
-    assert len(received) == 1 and len(received[0].points) == len(r.trajectory.points)
+    assert len(received) == 1 and len(received[0].points) == len(r.trajectory.points), r.message
     r = _call(cli, req)
-    assert r.status == PlanToPose.Response.EXECUTION_FAILED and "tracking error" in r.message
+    assert r.status == PlanToPose.Response.EXECUTION_FAILED and "tracking error" in r.message, r.message
 
 
 def test_point_cloud_source_and_transfer(client):

@@ -144,3 +144,29 @@ def test_grasp_approach_may_touch_only_the_manipulated_object(setup):
     inside_other = Pose([0.5, -0.2, 0.06], DOWN)
     assert planner.plan(Q_HOME, inside_other, manipulated="cube").status is PlanStatus.GOAL_IN_COLLISION
     cm.set_boxes([])
+
+
+def test_transfer_lifts_off_and_places_onto_supports(setup):
+    """Pick a cube resting on the table, place it on top of a block: the held cube may touch the
+    table while lifting and the block while placing, nothing else."""
+    kin, cm, planner = setup
+    cube_T = np.eye(4)
+    cube_T[:3, 3] = (0.45, -0.2, 0.025)
+    block = _box("block", [0.45, 0.2, 0.05], [0.04, 0.04, 0.05])
+    cm.set_boxes([block])
+    grasp = Pose(cube_T[:3, 3], DOWN)
+    q0 = planner.ik.solve(grasp.matrix(), seed_q=Q_HOME, timeout=0.5).solutions[0]
+    T_ee_obj = np.linalg.inv(kin.fk(q0)) @ cube_T
+    cube = AttachedObject.from_box("cube", [0.025] * 3, T_ee_obj)
+    place = Pose([0.45, 0.2, 0.1 + 0.025], DOWN)  # cube centre on the block's top
+    # without the allowance the cube resting on the table is a collision at the start
+    strict = planner.plan(q0, place, Mode.TRANSFER, attached=cube, start_support=None, goal_support=None)
+    assert strict.status is PlanStatus.START_IN_COLLISION, strict.message
+    res = planner.plan(q0, place, Mode.TRANSFER, attached=cube, start_support="table",
+                       goal_support="block", timeout=5.0)
+    assert res.ok, res.message
+    np.testing.assert_allclose((kin.fk(res.joint_path[-1]) @ T_ee_obj)[:3, 3], [0.45, 0.2, 0.125], atol=1e-4)
+    a, b = next((a, b) for name, a, b in res.segments if name == "transfer")
+    Q = np.vstack([cm.motion_samples(p, q, cube) for p, q in zip(res.joint_path[a:b], res.joint_path[a + 1:b + 1])])
+    assert not cm.in_collision(Q, attached=cube).any()  # in transfer: no contact at all
+    cm.set_boxes([])

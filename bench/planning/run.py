@@ -63,10 +63,10 @@ def random_pose(rng) -> Pose:
     return Pose(p, R.as_quat())
 
 
-def make_problem(rng, kin, ik, cm):
+def make_problem(rng, kin, ik, cm, n_boxes=(4, 8)):
     """Boxes, a start configuration and a goal pose, all collision-free for the scene model."""
     while True:
-        boxes = random_boxes(rng, int(rng.integers(4, 9)))
+        boxes = random_boxes(rng, int(rng.integers(n_boxes[0], n_boxes[1] + 1)))
         cm.set_boxes(boxes)
         cm.set_point_cloud(np.empty((0, 3)))
         start = None
@@ -200,6 +200,8 @@ def main():
     ap.add_argument("--timeout", type=float, default=5.0)
     ap.add_argument("--camera-px", type=int, default=128, help="camera width = height (sim default 128)")
     ap.add_argument("--modes", default="scene,point_cloud")
+    ap.add_argument("--min-boxes", type=int, default=4)
+    ap.add_argument("--max-boxes", type=int, default=8)
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "planning.json"))
     args = ap.parse_args()
     n = 20 if args.quick else args.problems
@@ -208,15 +210,15 @@ def main():
     ik = IKSolver(kin, rng=args.seed)
     planner = MotionPlanner(kin, ik, cm, seed=args.seed + 1)
     rng = np.random.default_rng(args.seed)
-    problems = [make_problem(rng, kin, ik, cm) for _ in range(n)]
+    problems = [make_problem(rng, kin, ik, cm, (args.min_boxes, args.max_boxes)) for _ in range(n)]
     gt = GroundTruth()
     cfgs = (cam.CameraConfig("front", args.camera_px, args.camera_px),
             cam.CameraConfig("wrist", args.camera_px, args.camera_px))
     results = {m: run_mode(m, problems, kin, ik, cm, gt, planner, cfgs, args.timeout)
                for m in args.modes.split(",")}
     out = {
-        "benchmark": "planning", "command": "python bench/planning/run.py" + (" --quick" if args.quick else ""),
-        "problems": n, "seed": args.seed, "timeout_s": args.timeout, "camera_px": args.camera_px,
+        "benchmark": "planning", "command": "python " + " ".join(sys.argv),
+        "problems": n, "boxes_per_problem": [args.min_boxes, args.max_boxes], "seed": args.seed, "timeout_s": args.timeout, "camera_px": args.camera_px,
         "machine": {"platform": platform.platform(), "python": platform.python_version(),
                     "cpus": os.cpu_count(), "load_avg": os.getloadavg()},
         "anchors": {"moveit_ompl_rrtconnect_typical_s": [0.1, 0.2], "curobo_gpu_median_s": 0.031,

@@ -11,7 +11,7 @@ private ROS domain, loopback only:
 Ratios: recorder vs baseline receive counts and CPU; player timing error vs the live publisher's
 own timing error seen by the baseline subscriber.
 
-    python bench/recorder_throughput/run.py [--quick] [--compression zstd|lz4|none] [--qos reliable|sensor]
+    python bench/recorder_throughput/run.py [--quick] [--compression lz4|zstd|none] [--qos reliable|sensor]
 
 Writes bench/results/recorder_throughput.json (with the rerun command and machine info).
 """
@@ -253,7 +253,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="4 s instead of 20 s")
     ap.add_argument("--duration", type=float, default=None)
-    ap.add_argument("--compression", default="zstd", choices=["zstd", "lz4", "none"])
+    ap.add_argument("--compression", default="lz4", choices=["zstd", "lz4", "none"],
+                    help="recorder chunk compression (lz4 is the recorder's default)")
     ap.add_argument("--qos", choices=["reliable", "sensor"], default="reliable",
                     help="point cloud QoS: reliable (default; isolates the recorder from transport loss) or "
                          "sensor data (best effort: Fast DDS drops most 4.9 MB samples even for a null subscriber)")
@@ -269,6 +270,7 @@ def main() -> int:
         role_null(a)
         return 0
 
+    load_before = os.getloadavg()
     env = _env(domain=60 + os.getpid() % 30)
     os.environ.update(env)
     tmp = Path(tempfile.mkdtemp(prefix="recbench_"))
@@ -301,7 +303,9 @@ def main() -> int:
         "benchmark": "recorder_throughput",
         "command": " ".join(["python", "bench/recorder_throughput/run.py"] + sys.argv[1:]),
         "machine": {"platform": platform.platform(), "python": platform.python_version(),
-                    "cpus": os.cpu_count(), "processor": platform.processor() or platform.machine()},
+                    "cpus": os.cpu_count(), "processor": platform.processor() or platform.machine(),
+                    "loadavg_1m_before_after": [round(load_before[0], 2), round(os.getloadavg()[0], 2)],
+                    "note": "shared machine: other jobs' load inflates losses and timing errors"},
         "input": {"duration_s": a.duration, "pointcloud": "640x480 xyz+rgb float32 @30 Hz",
                   "pointcloud_bytes": published_b["pc_bytes"], "joint_states_hz": 500,
                   "pointcloud_qos": "reliable" if a.reliable else "sensor_data (best effort)",

@@ -7,7 +7,8 @@ Reports, in one run:
   period, the distance between the EE and that period's target;
 - overhead ratio = wall time of the same command sequence over ROS 2 topics in lockstep (client
   sends a target, waits for the resulting ee_pose, sends the next) / wall time stepping the same
-  sim in-process. Goal: <= 1.5.
+  sim in-process. Goal: <= 1.5. Also the same ratio in CPU seconds (driver + client processes vs
+  the in-process run), which a loaded machine's scheduling delays do not inflate.
 - scripted-solution success rate over a few seeds per task/variant (the privileged solver).
 Writes bench/results/sim_driver.json.  Usage: python bench/sim_driver/run.py [--quick]
 """
@@ -63,6 +64,7 @@ def in_process(targets, cameras: bool) -> dict:
     world.reset("Square", "D0", 0)
     lead_in(world, targets[0])
     pos_err, ang_err, ee_pos = [], [], []
+    c0 = time.process_time()
     t0 = time.perf_counter()
     for tgt in targets:
         world.step(tgt, -1.0)
@@ -73,6 +75,7 @@ def in_process(targets, cameras: bool) -> dict:
         pos_err.append(np.linalg.norm(ee.position - tgt.position))
         ang_err.append(rotation_angle(ee.rotation.as_matrix(), tgt.rotation.as_matrix()))
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     world.close()
     sim = len(targets) / HZ
     # OSC without feed-forward lags a moving target; the error against the target `lag` periods
@@ -80,7 +83,7 @@ def in_process(targets, cameras: bool) -> dict:
     tp, ep = np.array([t.position for t in targets]), np.array(ee_pos)
     lagged = {lag: 1e3 * float(np.mean(np.linalg.norm(ep[lag:] - tp[:len(tp) - lag], axis=1))) for lag in range(6)}
     best = min(lagged, key=lagged.get)
-    return {"wall_s": wall, "sim_s": sim, "rtf": sim / wall,
+    return {"wall_s": wall, "cpu_s": cpu, "sim_s": sim, "rtf": sim / wall,
             "pos_err_mm": {"mean": 1e3 * float(np.mean(pos_err)), "max": 1e3 * float(np.max(pos_err))},
             "ang_err_deg": {"mean": float(np.degrees(np.mean(ang_err))), "max": float(np.degrees(np.max(ang_err)))},
             "pos_err_mm_best_lag": {"lag_periods": best, "mean": lagged[best]}}
@@ -127,10 +130,12 @@ def over_ros(targets, cameras: bool, domain: int) -> dict:
         for k in range(1, 41):  # the same lead-in as in-process
             s = k / 40
             send_and_wait(Pose(start.position + s * (targets[0].position - start.position), targets[0].quaternion))
+        c0, d0 = time.process_time(), _cpu_seconds(proc.pid)
         t0 = time.perf_counter()
         for tgt in targets:
             send_and_wait(tgt)
         wall = time.perf_counter() - t0
+        cpu = time.process_time() - c0 + _cpu_seconds(proc.pid) - d0
     finally:
         exe.shutdown()
         node.destroy_node()
@@ -138,7 +143,13 @@ def over_ros(targets, cameras: bool, domain: int) -> dict:
         proc.send_signal(2)
         proc.wait(10)
     sim = len(targets) / HZ
-    return {"wall_s": wall, "sim_s": sim, "rtf": sim / wall}
+    return {"wall_s": wall, "cpu_s": cpu, "sim_s": sim, "rtf": sim / wall}
+
+
+def _cpu_seconds(pid: int) -> float:
+    """user + system CPU seconds of a process (all its threads)."""
+    fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def scripted_rates(seeds: int) -> dict:
@@ -186,6 +197,10 @@ def main() -> int:
                                                                         "pos_err_mm_best_lag")}
     res["overhead_ratio_no_cameras"] = res["ros_lockstep_no_cameras"]["wall_s"] / res["in_process_no_cameras"]["wall_s"]
     res["overhead_ratio_cameras"] = res["ros_lockstep_cameras"]["wall_s"] / res["in_process_cameras"]["wall_s"]
+    # CPU-time ratio (driver + client vs in-process): the graph's cost without the scheduler delays a
+    # shared, loaded machine adds to every lockstep round trip
+    res["overhead_ratio_cpu_no_cameras"] = res["ros_lockstep_no_cameras"]["cpu_s"] / res["in_process_no_cameras"]["cpu_s"]
+    res["overhead_ratio_cpu_cameras"] = res["ros_lockstep_cameras"]["cpu_s"] / res["in_process_cameras"]["cpu_s"]
     res["graph_overhead_ms_per_period"] = {
         k: 1e3 * (res[f"ros_lockstep_{k}"]["wall_s"] - res[f"in_process_{k}"]["wall_s"]) / n
         for k in ("no_cameras", "cameras")}

@@ -138,8 +138,12 @@ class RosGraphEnv:
     def observe(self) -> Observation:
         with self._lock:
             ee, q, f = self._ee, self._q.copy(), self._fingers.copy()
-        return Observation(ee_pose=convert.pose_from_msg(ee.pose), gripper=f, joint_positions=q,
-                           object_poses=dict(self._estimates))
+        ee_pose = convert.pose_from_msg(ee.pose)
+        objects = dict(self._estimates)
+        held = self.grasps.holding()
+        if held in objects:  # a held object moves with the hand (rigid attachment)
+            objects[held] = self.grasps.pose_now(held, ee_pose.matrix())
+        return Observation(ee_pose=ee_pose, gripper=f, joint_positions=q, object_poses=objects)
 
     def estimate_poses(self) -> dict[str, Pose]:
         held = self.grasps.holding()

@@ -106,13 +106,19 @@ class PerceptionNode(Node):
         cam = list(g("camera_position") or [])
         if cam and len(cam) != 3:
             raise ParameterError("camera_position must have 3 values or be empty")
+        lo, hi = list(g("workspace_lo")), list(g("workspace_hi"))
+        if len(lo) != 3 or len(hi) != 3 or not all(a < b for a, b in zip(lo, hi)):
+            raise ParameterError(f"workspace_lo {lo} / workspace_hi {hi}: need 3 values each with lo < hi")
+        for name in ("voxel", "table_distance", "dbscan_eps", "inlier_distance", "obstacle_voxel"):
+            if not g(name) > 0:
+                raise ParameterError(f"{name} must be > 0, got {g(name)}")
         self.mode = mode
         self.world_frame = g("world_frame")
         self.camera = np.array(cam, float) if cam else None
         self.use_wrist = bool(g("use_wrist"))
         self.max_age = float(g("max_cloud_age"))
         self.params = PerceptionParams(
-            world_frame=self.world_frame, workspace_lo=tuple(g("workspace_lo")), workspace_hi=tuple(g("workspace_hi")),
+            world_frame=self.world_frame, workspace_lo=tuple(lo), workspace_hi=tuple(hi),
             voxel=g("voxel"), table_distance=g("table_distance"), min_object_height=g("min_object_height"),
             dbscan_eps=g("dbscan_eps"), dbscan_min_points=g("dbscan_min_points"),
             min_cluster_points=g("min_cluster_points"), accept_score=g("accept_score"),
@@ -128,8 +134,8 @@ class PerceptionNode(Node):
                     self._set_task(p.value)
                 except SkillGenError as e:
                     return SetParametersResult(successful=False, reason=str(e))
-            elif p.name == "mode":
-                return SetParametersResult(successful=False, reason="mode is fixed at start-up")
+            elif p.name != "use_sim_time":
+                return SetParametersResult(successful=False, reason=f"{p.name} is read at start-up; restart to change it")
         return SetParametersResult(successful=True)
 
     def _set_task(self, name: str) -> None:

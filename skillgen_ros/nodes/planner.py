@@ -261,7 +261,7 @@ class PlannerNode(Node):
         self.markers.publish(arr)
 
     def _execute(self, traj_msg) -> tuple[bool, str]:
-        if not self.exec_client.wait_for_server(timeout_sec=2.0):
+        if not self.exec_client.wait_for_server(timeout_sec=10.0):  # discovery can be slow
             return False, "execute_trajectory action server not available"
         goal = ExecuteTrajectory.Goal(trajectory=traj_msg)
         fut = self.exec_client.send_goal_async(goal)

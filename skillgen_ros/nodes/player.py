@@ -36,7 +36,7 @@ def parse_remaps(pairs: list[str]) -> dict[str, str]:
         src, sep, dst = pair.partition(":=")
         if not sep or not src or not dst:
             raise ParameterError(f"remap entry '{pair}' is not 'from:=to'")
-        out[src] = dst
+        out[src if src.startswith("/") else "/" + src] = dst
     return out
 
 
@@ -71,7 +71,8 @@ class Player(Node):
         self._reader = BagReader(p["bag"])  # BagError (reason) stops the node with a clear line
         for w in self._reader.warnings:
             self.get_logger().warn(w)
-        topics = [t for t in p["topics"] if t] or sorted(self._reader.topics)
+        # Recorded names are absolute; accept 'joint_states' for '/joint_states'.
+        topics = [t if t.startswith("/") else "/" + t for t in p["topics"] if t] or sorted(self._reader.topics)
         check_installed(self._reader, topics)  # unknown topic / type not installed -> BagError
         remaps = parse_remaps(p["remap"])
         self._topics = topics

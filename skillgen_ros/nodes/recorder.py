@@ -82,7 +82,7 @@ class _WriterThread(threading.Thread):
                 with self._lock:
                     self.queued_bytes -= len(data)
                 self.writer.write(topic, data, log_ns, pub_ns)
-            except SkillGenError as e:  # keep recording the other topics
+            except (SkillGenError, OSError) as e:  # e.g. disk full: say so, keep draining
                 self.error = e
                 self._logger.error(str(e))
 
@@ -106,7 +106,8 @@ class Recorder(Node):
         self.declare_parameter("exclude", ["/rosout", "/parameter_events"], d(description="never record"))
         self.declare_parameter("include_hidden", False, d(description="also record hidden (/_x) topics"))
         self.declare_parameter("max_bag_size", 0, d(description="split to a new .mcap past this many bytes; 0 never"))
-        self.declare_parameter("compression", "zstd", d(description="MCAP chunk compression: zstd, lz4, none"))
+        self.declare_parameter("compression", "lz4", d(description="MCAP chunk compression: lz4 (fast), zstd "
+                                                                   "(smaller, ~4x the CPU), none"))
         self.declare_parameter("chunk_size", 1 << 20, d(description="uncompressed bytes per MCAP chunk"))
         self.declare_parameter("max_chunk_age", 1.0, d(description="s; close a chunk this old (kill-safety bound)"))
         self.declare_parameter("autostart", True, d(description="start recording at launch"))
@@ -139,6 +140,7 @@ class Recorder(Node):
         self._bag_path: Path | None = None
         self._subs: dict[str, object] = {}
         self._specs: dict[str, TopicSpec] = {}
+        self._skipped: set[str] = set()
         self.received = 0
         self._io_node = rclpy.create_node(f"_{self.get_name()}_io", namespace=self.get_namespace(),
                                           context=self.context)
@@ -243,7 +245,9 @@ class Recorder(Node):
             try:
                 cls = message_class(type_name)
             except BagError as e:
-                self.get_logger().warn(f"not recording {topic}: {e}", once=True)
+                if topic not in self._skipped:
+                    self._skipped.add(topic)
+                    self.get_logger().warn(f"not recording {topic}: {e}")
                 continue
             spec = TopicSpec(topic, type_name, tuple(qos_to_dict(i.qos_profile) for i in infos))
             qos = subscription_qos([i.qos_profile for i in infos], self._depth)

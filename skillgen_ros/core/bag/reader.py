@@ -199,6 +199,7 @@ class BagReader:
         self.files = tuple(self._file_info(p, s) for p, s in self._scans.items())
         self.topics = self._collect_topics()
         self.metadata_records = {k: v for s in self._scans.values() for k, v in s.metadata.items()}
+        self._typestores: dict = {}
 
     # -- summary ----------------------------------------------------------------------------
     @property
@@ -252,6 +253,32 @@ class BagReader:
                  for c, m in _records(path, rescan) if keep(c, m)]
         batch.sort(key=lambda m: m.log_time_ns)
         yield from batch
+
+    def decode(self, message: BagMessage):
+        """Deserialize with the bag's own schema (rosbags), no ROS install needed: field names as in
+        the .msg, nested messages as dataclasses, arrays as numpy. BagError BAD_SCHEMA if unparsable."""
+        store = self._typestores.get(message.type)
+        if store is None:
+            from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+            topic = next((t for t in self.topics.values() if t.type == message.type), None)
+            try:
+                store = get_typestore(Stores.EMPTY)
+                store.register(get_types_from_msg(topic.schema_text if topic else "", message.type))
+            except Exception as e:  # rosbags raises several parser error types
+                raise BagError(f"cannot parse the bag's schema for {message.type}: {e}", "BAD_SCHEMA") from None
+            self._typestores[message.type] = store
+        name = next((k for k in store.types if k.split("/")[0] == message.type.split("/")[0]
+                     and k.rsplit("/", 1)[1] == message.type.rsplit("/", 1)[1]), message.type)
+        # Not store.deserialize_cdr: it rejects trailing bytes, and rclpy-serialized messages can
+        # carry a few bytes of padding past the last field (seen with JointState).
+        msgdef = store.get_msgdef(name)
+        data = message.data
+        func = msgdef.deserialize_cdr_le if data[1:2] == b"\x01" else msgdef.deserialize_cdr_be
+        try:
+            return func(data[4:], 0, msgdef.cls, store)[0]
+        except Exception as e:
+            raise BagError(f"cannot decode a {message.type} message on {message.topic}: {e}", "BAD_MESSAGE") from None
 
     # -- internals --------------------------------------------------------------------------
     def _dir_files(self) -> list[Path]:
@@ -331,8 +358,13 @@ def message_class(type_name: str):
 
 def check_installed(reader: BagReader, topics: Iterable[str] | None = None) -> None:
     """Raise TYPE_NOT_INSTALLED naming every topic whose type this machine lacks."""
+    names = list(topics) if topics is not None else list(reader.topics)
+    unknown = [n for n in names if n not in reader.topics]
+    if unknown:
+        raise BagError(f"topics {unknown} are not in {reader.path}; it has {sorted(reader.topics)}",
+                       "UNKNOWN_TOPIC")
     missing = []
-    for name in topics if topics is not None else reader.topics:
+    for name in names:
         t = reader.topics[name].type
         try:
             message_class(t)

@@ -145,7 +145,6 @@ class BagWriter:
         self._schema_text: dict[str, str] = {}
         self._counts: dict[str, int] = {}
         self._closed_files: list[FileStats] = []
-        self._pending_metadata: list[tuple[str, dict[str, str]]] = []
         self._file: _FileState | None = None
         self._chunk_opened_at: float | None = None
         self._last_meta = 0.0

@@ -177,6 +177,8 @@ class _Attempt:
             self._timed("perception", t)
         if skill.object_id not in poses:
             raise _Fail(FailureReason.PERCEPTION_FAILED, f"no pose for skill {skill.index} object {skill.object_id!r}")
+        if not self.obs.object_poses or not self.rec:  # observations carry the estimates from here on
+            self.obs = self.env.observe()
         p = poses[skill.object_id]
         return p.matrix() if isinstance(p, Pose) else np.asarray(p, float)
 

@@ -105,8 +105,13 @@ class SimGenerationEnv:
         if self.cfg.images:
             images = {"front": _resize(w.render("front").rgb, self.cfg.image_size),
                       "wrist": w.render("wrist").rgb}
-        return Observation(ee_pose=w.ee_pose(), gripper=w.finger_positions(), joint_positions=w.joint_positions(),
-                           object_poses=dict(self._estimates), images=images)
+        ee = w.ee_pose()
+        objects = dict(self._estimates)
+        held = self.grasps.holding()
+        if held in objects:  # a held object moves with the hand (rigid attachment)
+            objects[held] = self.grasps.pose_now(held, ee.matrix())
+        return Observation(ee_pose=ee, gripper=w.finger_positions(), joint_positions=w.joint_positions(),
+                           object_poses=objects, images=images)
 
     def estimate_poses(self) -> dict[str, Pose]:
         if self.cfg.perception == "ground_truth":
@@ -141,10 +146,15 @@ class SimGenerationEnv:
     def _planning_scene(self, skill_object: str | None, attached: str | None):
         poses = dict(self.world.object_poses()) if self.cfg.perception == "ground_truth" else dict(self._estimates)
         if self.cfg.collision == "cloud":
+            # The cloud is the obstacle; boxes at the perceived poses only say which points belong
+            # to the manipulated object (allowed contacts), as in the planner node.
             frame = self.world.render("front")
-            self.cm.set_boxes(())
+            boxes = [b for o in self.scene.objects if o.id in poses and o.id != attached
+                     for b in object_boxes(o, poses[o.id])]
+            self.cm.set_boxes(boxes, as_obstacles=False)
             att = self._attachment(attached, poses)
-            self.cm.set_point_cloud(frame.valid_points(), self_filter_q=self.world.joint_positions(), attached=att)
+            self.cm.set_point_cloud(frame.valid_points(), self_filter_q=self.world.joint_positions(), attached=att,
+                                    fill_below=True)
             return att
         boxes = []
         for o in self.scene.objects:

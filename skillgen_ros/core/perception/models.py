@@ -93,6 +93,7 @@ class ObjectModel:
         mesh.compute_triangle_normals()
         area = mesh.get_surface_area()
         n = int(np.clip(area / spacing**2, 200, max_points))
+        o3d.utility.random.seed(0)  # the same model in every process: reproducible poses
         pcd = mesh.sample_points_uniformly(number_of_points=4 * n, use_triangle_normal=True)
         pcd = pcd.farthest_point_down_sample(n)
         return ObjectModel(type, np.asarray(pcd.points), np.asarray(pcd.normals), Symmetry.parse(symmetry))
@@ -127,16 +128,18 @@ class NearestGrid:
         axes = [self.origin[k] + (np.arange(self.shape[k]) + 0.5) * self.cell for k in range(3)]
         centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
         _, idx = model.tree.query(centres)
-        self.index = idx.astype(np.int32).reshape(tuple(self.shape))
+        self.index = idx.astype(np.int32)  # flat, C order over (i, j, k)
+        self.strides = np.array([self.shape[1] * self.shape[2], self.shape[2], 1])
         self.points = model.points
 
     def query(self, q: np.ndarray, gate: float) -> tuple[np.ndarray, np.ndarray]:
         """(distances with inf beyond `gate` or off-grid, nearest model point indices)."""
-        ijk = np.floor((q - self.origin) / self.cell).astype(np.int64)
-        inside = np.all((ijk >= 0) & (ijk < self.shape), axis=1)
-        j = np.zeros(len(q), dtype=np.int64)
-        j[inside] = self.index[ijk[inside, 0], ijk[inside, 1], ijk[inside, 2]]
-        d = np.linalg.norm(self.points[j] - q, axis=1)
+        f = (q - self.origin) * (1.0 / self.cell)
+        ijk = f.astype(np.int64)                     # truncation == floor inside the grid
+        inside = (f.min(axis=1) >= 0) & np.all(ijk < self.shape, axis=1)
+        j = self.index[np.where(inside, ijk @ self.strides, 0)]
+        diff = self.points[j] - q
+        d = np.sqrt(np.einsum("ij,ij->i", diff, diff))
         d[~inside | (d > gate)] = np.inf
         return d, j
 
@@ -164,8 +167,8 @@ def model_for(type: str, mesh_path: str, symmetry="none") -> ObjectModel:
 
 
 def models_for_objects(objects) -> dict[str, ObjectModel]:
-    """id -> model for scene objects (anything with id, type, mesh_path, symmetry: the task's
-    ObjectSpec or a SceneObject message's fields); objects of one type share one model."""
+    """id -> model for scene objects (anything with id, type, mesh_path and symmetry, e.g. the
+    task suite's ObjectSpec); objects of one type share one model."""
     return {o.id: model_for(o.type, o.mesh_path, getattr(o, "symmetry", "none")) for o in objects}
 
 

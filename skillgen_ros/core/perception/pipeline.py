@@ -101,8 +101,12 @@ def _fail(status: PerceptionStatus, message: str, timings: dict, table=None) -> 
     return PerceptionResult(status, message, {}, np.zeros((0, 3)), table=table, timings=timings)
 
 
-def _compatible(cluster: np.ndarray, plane: cloud.Plane, model: ObjectModel, margin: float) -> bool:
-    """Cheap size gate: a cluster much wider or taller than the model is not that model."""
+def _compatible(cluster: np.ndarray, plane: cloud.Plane, model: ObjectModel, margin: float,
+                upright: bool = True) -> bool:
+    """Cheap size gate: a cluster much wider or taller than the model is not that model
+    (upright: against its height and footprint; otherwise against its diameter)."""
+    if not upright:
+        return float(np.linalg.norm(cluster.max(axis=0) - cluster.min(axis=0))) <= model.diameter + margin
     h = plane.signed_distance(cluster)
     if h.max() > (model.hi[2] - model.lo[2]) + margin:
         return False
@@ -181,7 +185,8 @@ def _fit_groups(clusters, groups, models: Mapping[str, ObjectModel], plane: clou
         fitter = None
         for same in distinct.values():
             m = models[same[0]]
-            if not _compatible(pts_g, plane, m, params.size_margin):
+            upright_only = pose_params.upright and not pose_params.global_registration
+            if not _compatible(pts_g, plane, m, params.size_margin, upright_only):
                 continue
             fitter = fitter or ClusterFitter(pts_g, plane.normal, pose_params, cam, seed=min(g),
                                              table_offset=plane.offset)

@@ -24,6 +24,7 @@ from .cloud import to_o3d
 from .models import ObjectModel, nearest_grid
 
 _UP = np.array([0.0, 0.0, 1.0])
+_HALF_TURNS = [np.diag(d) for d in ([1.0, 1, 1, 1], [1.0, -1, -1, 1], [-1.0, 1, -1, 1], [-1.0, -1, 1, 1])]
 
 
 @dataclass(frozen=True)
@@ -201,11 +202,15 @@ class ClusterFitter:
         out = []
         for i in range(n):
             o3d.utility.random.seed(int(self.rng.integers(1 << 31)))
-            res = reg.registration_ransac_based_on_feature_matching(
-                src, tgt, src_f, tgt_f, True, 1.5 * v, reg.TransformationEstimationPointToPoint(False), 3,
-                [reg.CorrespondenceCheckerBasedOnEdgeLength(0.9), reg.CorrespondenceCheckerBasedOnDistance(1.5 * v)],
-                reg.RANSACConvergenceCriteria(20000, 0.999))
-            out.append(np.asarray(res.transformation).copy())
+            with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+                res = reg.registration_ransac_based_on_feature_matching(
+                    src, tgt, src_f, tgt_f, True, 1.5 * v, reg.TransformationEstimationPointToPoint(False), 3,
+                    [reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
+                     reg.CorrespondenceCheckerBasedOnDistance(1.5 * v)],
+                    reg.RANSACConvergenceCriteria(20000, 0.999))
+            T = np.asarray(res.transformation).copy()
+            # Partial views of flat parts often register upside down: try the half turns too.
+            out += [T @ F for F in _HALF_TURNS]
         return out
 
     def _to_world(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -264,7 +269,7 @@ class ClusterFitter:
             Ru_new, tu_new = _fit_yaw_translation(P, Q, Ru if lock_yaw else None)
             if self.table_z is not None:
                 tu_new[2] = tu[2]
-            done = np.linalg.norm(tu_new - tu) < 5e-5 and abs(Ru_new[0, 1] - Ru[0, 1]) < 5e-4
+            done = np.linalg.norm(tu_new - tu) < 1e-4 and abs(Ru_new[0, 1] - Ru[0, 1]) < 1e-3  # 0.1 mm, 0.06 deg
             Ru, tu = Ru_new, tu_new
             if done:
                 break

@@ -73,10 +73,11 @@ class IKSolver:
         does not converge. The caller checks the joint jump."""
         T_target = np.ascontiguousarray(target.matrix() if isinstance(target, Pose) else np.asarray(target, float))
         Q = np.clip(np.asarray(seed_q, float).reshape(1, 7), self.lower, self.upper).copy()
-        state = np.array([[np.inf, -1e9, 0.0]])  # never counted as stalled or old
+        state = np.array([[np.inf, 0.0, 0.0]])
         kin = self.kin
         done = kernels.ik_iterate(Q, state, T_target, kin._joint_T, kin._ee_parent, kin._ee_T,
-                                  self.lower, self.upper, np.ones(1, np.bool_), tol, iters, 10**9)
+                                  self.lower, self.upper, np.ones(1, np.bool_), tol, iters, iters,
+                                  False)
         return Q[0].copy() if done[0] else None
 
     def solve(self, target, seed_q=None, timeout: float = 0.005, tol: float = 1e-5,

@@ -181,11 +181,12 @@ def ee_error_jacobian(q, T_target, joint_T, ee_parent, ee_T, frames, e, J):
 
 @njit(cache=True)
 def ik_iterate(Q, state, T_target, joint_T, ee_parent, ee_T, lower, upper, newton_rows,
-               tol, n_iters, max_age):
+               tol, n_iters, max_age, restart=True):
     """Run up to n_iters batched iterations; return a bool mask of rows within `tol`.
 
     state[:, 0] = best error so far, state[:, 1] = iterations since a 10% improvement,
-    state[:, 2] = age of the row's seed. Stalled or old rows are re-seeded uniformly.
+    state[:, 2] = age of the row's seed. Stalled or old rows are re-seeded uniformly (unless
+    restart is False: local tracking must stay on its branch).
     Newton rows: dq = J^T (J J^T + lam I)^-1 e. Bounded rows: the same after freezing joints that
     sit on a limit and whose step points outward (one active-set pass).
     """
@@ -209,7 +210,7 @@ def ik_iterate(Q, state, T_target, joint_T, ee_parent, ee_T, lower, upper, newto
             else:
                 state[k, 1] += 1
             state[k, 2] += 1
-            if state[k, 1] > 4 or state[k, 2] > max_age:
+            if restart and (state[k, 1] > 4 or state[k, 2] > max_age):
                 for j in range(7):
                     Q[k, j] = np.random.uniform(lower[j], upper[j])
                 state[k, 0] = np.inf

@@ -8,8 +8,11 @@ path to few waypoints, which matters because each waypoint is a stop in the time
 """
 from __future__ import annotations
 
+import atexit
 import enum
+import gc
 import time
+import weakref
 from dataclasses import dataclass
 from typing import Callable
 
@@ -20,6 +23,15 @@ import ompl.util as ou
 
 ou.setLogLevel(ou.LogLevel.LOG_WARN)
 _seeded = False  # OMPL's RNG can be seeded once per process, before its first use
+_live: "weakref.WeakSet[JointSpaceRRT]" = weakref.WeakSet()
+
+
+@atexit.register
+def _release_all() -> None:
+    """Free OMPL objects before interpreter teardown; otherwise nanobind prints leak reports."""
+    for rrt in list(_live):
+        rrt.release()
+    gc.collect()
 
 
 def seed_ompl(seed: int) -> None:
@@ -80,6 +92,11 @@ class JointSpaceRRT:
             self.planner.setRange(float(range_))
         self.ss.setPlanner(self.planner)
         self.simplifier = og.PathSimplifier(self.si)
+        _live.add(self)
+
+    def release(self) -> None:
+        for name in ("simplifier", "planner", "_validator", "si", "ss", "space"):
+            self.__dict__.pop(name, None)
 
     def edge_free(self, q0, q1) -> bool:
         self.edge_checks += 1

@@ -40,6 +40,7 @@ class ScriptParams:
     grasp_z_offset: float = 0.004     # grasp above the grasp keypoint (m, world z)
     milk_grasp_depth: float = 0.025   # grasp this far below the carton top (m)
     place_drop: float = 0.02          # release height of a placed object's bottom above its support (m)
+    hand_clearance: float = 0.08     # keep the grasp point this far from other objects when placing (m)
     insert_pre: float = 0.05          # needle tip this far before the ring plane before inserting (m)
     insert_depth: float = 0.05        # and this far past it at the end (m)
     yaw_noise: float = 0.0            # hooks for a noisy demonstrator (rad, m); 0 = deterministic
@@ -137,25 +138,61 @@ def _aabb_corners_world(o: ObjectSpec, pose: Pose) -> np.ndarray:
     return pose.rotation.apply(c) + pose.position
 
 
-def grasp_pose(obj: ObjectSpec, pose: Pose, reference_yaw: float, params: ScriptParams) -> Pose:
-    """Top-down grasp: at the "handle" keypoint (or below the top), fingers closing across object y."""
+MAX_EE_YAW = np.radians(100.0)  # |EE yaw| beyond this runs panda_joint7 into its limits
+HAND_HALF_SPAN = 0.11   # panda_hand half width along the finger axis (m)
+
+
+def hand_clearance(point_xy, yaw: float, others) -> float:
+    """Smallest gap between the hand's footprint (a segment along the finger axis, EE y) and the
+    bounding circles of `others` [(centre xy, radius)]; large if there are none."""
+    axis = np.array([-np.sin(yaw), np.cos(yaw)])
+    gaps = []
+    for c, r in others:
+        d = np.asarray(c) - np.asarray(point_xy)
+        t = np.clip(d @ axis, -HAND_HALF_SPAN, HAND_HALF_SPAN)
+        gaps.append(float(np.linalg.norm(d - t * axis)) - r)
+    return min(gaps, default=1.0)
+
+
+def grasp_pose(obj: ObjectSpec, pose: Pose, reference_yaw: float, params: ScriptParams, others=()) -> Pose:
+    """Top-down grasp at the "handle" keypoint (or below the top), fingers closing across object y.
+
+    Of the symmetric alternatives (every 180 deg, every 90 deg for the square carton) it takes the
+    one closest to `reference_yaw` whose hand footprint clears `others` [(xy, radius)] by 2 cm."""
     if obj.type == "milk":
         point = pose.position + [0.0, 0.0, obj.half_extents[2] - params.milk_grasp_depth]
         period = np.pi / 2
     else:
         point = pose.rotation.apply(obj.keypoint("handle")) + pose.position + [0.0, 0.0, params.grasp_z_offset]
         period = np.pi
-    yaw = nearest_equivalent(object_yaw(pose), reference_yaw, period)
+    base = nearest_equivalent(object_yaw(pose), reference_yaw, period)
+    cands = [base + k * period for k in range(-2, 3) if abs(base + k * period - reference_yaw) <= np.pi / 2 + 1e-6]
+    yaw = min(cands, key=lambda y: (10.0 if hand_clearance(point[:2], y, others) < 0.02 else 0.0)
+              + abs(y - reference_yaw))
     return top_down(point, yaw)
 
 
 def pick(s: Scripter, obj_id: str) -> None:
     env, prm = s.env, s.params
     obj = next(o for o in env.scene.objects if o.id == obj_id)
-    g = grasp_pose(obj, env.object_poses()[obj_id], 0.0, prm)
+    others = [(p.position[:2], o.footprint_radius) for o in env.scene.objects if o.id != obj_id
+              for p in [env.object_poses()[o.id]]]
+    g = grasp_pose(obj, env.object_poses()[obj_id], 0.0, prm, others)
     s.travel(Pose(g.position + [0, 0, prm.approach_height], g.quaternion), _travel_z(env, prm, exclude=(obj_id,)))
     s.move(g, prm.slow_speed, gripper=-1.0)
     s.hold(prm.grasp_dwell, 1.0)
+
+
+class ScriptAborted(Exception):
+    """The scripted plan cannot continue (e.g. the object slipped out of the gripper)."""
+
+
+def _held(env, obj_id: str, max_dist: float = 0.10) -> Pose:
+    """T_obj_ee of the held object; aborts if the object is no longer at the gripper."""
+    obj, ee = env.object_poses()[obj_id], env.ee_pose()
+    if np.linalg.norm(obj.position - ee.position) > max_dist:
+        raise ScriptAborted(f"{obj_id} is not in the gripper")
+    return obj.inverse() @ ee
 
 
 def carry(s: Scripter, obj_id: str, goal_fn: Callable[[Pose], Pose], release: bool = True,
@@ -163,7 +200,7 @@ def carry(s: Scripter, obj_id: str, goal_fn: Callable[[Pose], Pose], release: bo
     """Move the held object to goal_fn(current object pose) using the measured grasp transform."""
     env, prm = s.env, s.params
     obj = next(o for o in env.scene.objects if o.id == obj_id)
-    T_obj_ee = env.object_poses()[obj_id].inverse() @ env.ee_pose()
+    T_obj_ee = _held(env, obj_id)
     goal_obj = goal_fn(env.object_poses()[obj_id])
     goal_ee = goal_obj @ T_obj_ee
     below = float(env.ee_pose().position[2] - np.min(_aabb_corners_world(obj, env.object_poses()[obj_id])[:, 2]))
@@ -175,10 +212,10 @@ def carry(s: Scripter, obj_id: str, goal_fn: Callable[[Pose], Pose], release: bo
     # then finish slowly along the approach direction
     for _ in range(prm.corrections):
         s.hold(prm.settle)
-        T_obj_ee = env.object_poses()[obj_id].inverse() @ env.ee_pose()
+        T_obj_ee = _held(env, obj_id)
         g = goal_obj @ T_obj_ee
         s.move(Pose(g.position + pre, g.quaternion), prm.slow_speed)
-    T_obj_ee = env.object_poses()[obj_id].inverse() @ env.ee_pose()
+    T_obj_ee = _held(env, obj_id)
     s.move(goal_obj @ T_obj_ee, prm.slow_speed)
     if release:
         s.hold(prm.release_dwell, -1.0)
@@ -186,14 +223,23 @@ def carry(s: Scripter, obj_id: str, goal_fn: Callable[[Pose], Pose], release: bo
 
 
 def _place_nut(nut: ObjectSpec, peg: ObjectSpec, env, prm: ScriptParams) -> Callable[[Pose], Pose]:
+    """Nut goal: ring centre on the peg axis, dropped from just above the table. Of the nut yaws that
+    fit (any for a round peg, four for a square one; candidates within +-90 deg of the current yaw),
+    prefer one whose handle (and so the hand) stays clear of other objects, then the smallest EE yaw."""
     def goal(nut_pose: Pose) -> Pose:
         peg_pose = env.object_poses()[peg.id]
-        yaw = object_yaw(nut_pose)
-        if peg.symmetry == "z4":
-            # of the four equivalent nut yaws, the one that leaves the EE yaw closest to 0 (joint 7 range)
-            e = ee_yaw(env.ee_pose())
-            yaw = min((nearest_equivalent(object_yaw(peg_pose), yaw, np.pi / 2) + k * np.pi / 2 for k in (-1, 0, 1)),
-                      key=lambda y: abs(e + (y - object_yaw(nut_pose))))
+        yaw0, e = object_yaw(nut_pose), ee_yaw(env.ee_pose())
+        base = nearest_equivalent(object_yaw(peg_pose), yaw0, np.pi / 2) if peg.symmetry == "z4" else yaw0
+        others = [(p.position[:2], o.footprint_radius) for o in env.scene.objects
+                  if o.id not in (nut.id, peg.id) for p in [env.object_poses()[o.id]]]
+        handle = nut.keypoint("handle") - nut.keypoint("ring_center")
+
+        def cost(y: float) -> float:
+            h = peg_pose.position[:2] + Rotation.from_euler("z", y).apply(handle)[:2]
+            clear = min((np.linalg.norm(h - c) - r for c, r in others), default=1.0)
+            ee_after = abs(e + (y - yaw0))
+            return (100.0 if ee_after > MAX_EE_YAW else 0.0) + (10.0 if clear < prm.hand_clearance else 0.0) + ee_after
+        yaw = min((base + k * np.pi / 2 for k in (-1, 0, 1)), key=cost)
         R = Rotation.from_euler("z", yaw)
         bottom = peg_pose.position[2] - peg.half_extents[2]
         ring = np.array([*peg_pose.position[:2], bottom + nut.half_extents[2] + prm.place_drop + 0.02])
@@ -234,7 +280,7 @@ def _thread(s: Scripter, needle: ObjectSpec, tripod: ObjectSpec) -> None:
         return lambda _p: Pose(tip - R.apply(tip_local), R.as_quat())
 
     carry(s, needle.id, needle_goal(-prm.insert_pre), release=False, pre_offset=np.zeros(3))
-    T_obj_ee = env.object_poses()[needle.id].inverse() @ env.ee_pose()
+    T_obj_ee = _held(env, needle.id)
     s.move(needle_goal(prm.insert_depth)(None) @ T_obj_ee, prm.slow_speed)
     s.hold(prm.settle)
 
@@ -248,6 +294,15 @@ def solve(env, params: ScriptParams | None = None, rng: np.random.Generator | No
     s = Scripter(env, prm, rng)
     s.hold(2, -1.0)
     O = {o.id: o for o in env.scene.objects}
+    try:
+        _run(task, s, O, env, prm)
+    except ScriptAborted:
+        pass
+    s.hold(prm.settle)
+    return ScriptResult(bool(env.task_success()), len(s.actions), s.actions)
+
+
+def _run(task: TaskSpec, s: Scripter, O: dict, env, prm: ScriptParams) -> None:
     if task.name in ("Square", "NutAssembly"):
         pairs = [("square_nut", "square_peg")] + ([("round_nut", "round_peg")] if task.name == "NutAssembly" else [])
         for nut, peg in pairs:
@@ -259,8 +314,6 @@ def solve(env, params: ScriptParams | None = None, rng: np.random.Generator | No
     elif task.name == "Threading":
         pick(s, "needle")
         _thread(s, O["needle"], O["tripod"])
-    s.hold(prm.settle)
-    return ScriptResult(bool(env.task_success()), len(s.actions), s.actions)
 
 
 def with_params(**kw) -> ScriptParams:

@@ -1,0 +1,117 @@
+"""End to end over the ROS graph on the simulated Panda (never the mock driver):
+sim_driver (lockstep) + perception (estimate) + planner + skill_replay + datagen, driven through
+the `generate` action with SkillGenClient. One graph serves the module's tests.
+"""
+import shutil
+import signal
+import time
+from pathlib import Path
+
+import h5py
+import pytest
+
+from conftest import REPO, NodeProcess, next_domain_id, wait_for
+from skillgen_ros.client import SkillGenClient
+from skillgen_ros.core.dataset.hdf5 import validate_dataset
+
+NODES = {
+    "sim_driver": ["-p", "cameras:=[front]", "-p", "camera_hz:=20.0"],
+    "perception": [],
+    "planner": [],
+    "skill_replay": [],
+    "datagen": ["-p", "timeout_perception:=8.0", "-p", "timeout_plan:=8.0"],
+}
+
+
+def _start(exe: str, dom: int) -> NodeProcess:
+    return NodeProcess(exe, dom, ["--ros-args", "--params-file", str(REPO / "params" / f"{exe}.yaml"), *NODES[exe]])
+
+
+@pytest.fixture(scope="module")
+def graph():
+    dom = next_domain_id()
+    procs = {exe: _start(exe, dom) for exe in NODES}
+    client = SkillGenClient(domain_id=dom)
+    try:
+        assert client.wait_for_server(180), "datagen did not come up"
+        yield dom, procs, client
+    finally:
+        client.close()
+        for p in procs.values():
+            p.stop()
+
+
+def _run(client, timeout=600, **goal):
+    fields = dict(task="Square", variant="D0", method="skillgen", attempts=1, seed=0)
+    fields.update(goal)
+    assert client.generate(**fields)
+    return client.result(timeout=timeout)
+
+
+def test_bad_requests_are_rejected_with_a_reason(graph, tmp_path):
+    _, procs, client = graph
+    existing = tmp_path / "existing"
+    existing.mkdir()
+    (existing / "demo.hdf5").write_bytes(b"keep me")
+    unannotated = tmp_path / "unannotated" / "demo_00"
+    shutil.copytree(REPO / "bags" / "Square" / "demo_00", unannotated)
+    (unannotated / "annotations.yaml").unlink()
+    cases = [
+        (dict(task="NoSuchTask"), "UNKNOWN_TASK"),
+        (dict(method="teleport"), "UNKNOWN_METHOD"),
+        (dict(attempts=0), "INVALID_ATTEMPTS"),
+        (dict(output_dir="/proc/skillgen_cannot_write_here"), "UNWRITABLE_OUTPUT"),
+        (dict(output_dir=str(existing)), "OUTPUT_EXISTS"),
+        (dict(source_demos=str(tmp_path / "empty")), "NO_SOURCE_DEMOS"),
+        (dict(source_demos=str(unannotated.parent)), None),  # some annotation error, named
+    ]
+    (tmp_path / "empty").mkdir()
+    for k, (goal, reason) in enumerate(cases):
+        goal.setdefault("output_dir", str(tmp_path / f"out{k}"))
+        res = _run(client, timeout=60, **goal)
+        assert not res.accepted, goal
+        if reason:
+            assert res.reason == reason, (goal, res.reason, res.message)
+        else:
+            assert "ANNOTATION" in res.reason and "demo_00" in res.message, (res.reason, res.message)
+    assert (existing / "demo.hdf5").read_bytes() == b"keep me"
+    assert all(p.proc.poll() is None for p in procs.values()), "a node died on bad input"
+
+
+def test_seeded_attempts_produce_a_valid_robomimic_dataset(graph, tmp_path):
+    _, _, client = graph
+    out = tmp_path / "run"
+    res = _run(client, attempts=3, output_dir=str(out))
+    assert res.accepted and res.reason == "OK", res.message
+    assert res.attempts == 3 and res.successes >= 1, [(f.reason, f.count) for f in res.failures]
+    summary = validate_dataset(res.dataset_path)
+    assert summary.num_demos == res.successes
+    with h5py.File(res.dataset_path, "r") as f:
+        assert "env_args" in f["data"].attrs and f["data"].attrs["total"] > 0
+        demo = f["data"][sorted(f["data"].keys())[0]]
+        for key in ("obs/robot0_eef_pos", "obs/robot0_eef_quat", "obs/robot0_gripper_qpos", "obs/robot0_joint_pos",
+                    "obs/square_nut_pose", "obs/square_peg_pose", "actions", "actions_abs", "states", "rewards",
+                    "dones", "labels/mp_step", "labels/skill_index", "labels/source_demo",
+                    "labels/initiation_target", "labels/augmented"):
+            assert key in demo, key
+        n = demo.attrs["num_samples"]
+        assert demo["actions"].shape == (n, 7) and demo["labels/mp_step"][:].any() and not demo["labels/mp_step"][:].all()
+        assert "successful" in f["mask"]
+    assert Path(res.report_path).exists()
+
+
+def test_killed_perception_fails_attempts_with_a_reason_and_the_run_goes_on(graph, tmp_path):
+    dom, procs, client = graph
+    out = tmp_path / "killed"
+    assert client.generate(task="Square", variant="D0", method="skillgen", attempts=4, seed=7, output_dir=str(out))
+    assert wait_for(lambda: client.feedback() is not None and client.feedback().attempts >= 1, 300)
+    procs["perception"].proc.send_signal(signal.SIGKILL)
+    procs["perception"].proc.wait(10)
+    time.sleep(12)  # at least one attempt finds perception gone
+    procs["perception"] = _start("perception", dom)
+    res = client.result(timeout=900)
+    assert res.accepted and res.attempts == 4, res.message
+    failures = {f.reason: f.count for f in res.failures}
+    assert failures.get("PERCEPTION_FAILED", 0) >= 1, failures
+    summary = validate_dataset(res.dataset_path)
+    assert summary.num_demos == res.successes

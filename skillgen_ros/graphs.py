@@ -70,8 +70,16 @@ def _share_dir() -> Path:
 
 
 def load_graphs() -> dict:
+    """The package's graphs.yaml, plus (overriding by name) the file named by $SKILLGEN_GRAPHS."""
     text = resources.files(PACKAGE).joinpath("graphs.yaml").read_text()
-    return yaml.safe_load(text)["graphs"]
+    graphs = dict(yaml.safe_load(text)["graphs"])
+    extra = os.environ.get("SKILLGEN_GRAPHS")
+    if extra:
+        try:
+            graphs.update((yaml.safe_load(Path(extra).read_text()) or {}).get("graphs", {}))
+        except (OSError, yaml.YAMLError, AttributeError) as e:
+            raise UnknownGraphError(f"cannot read graphs file {extra}: {e}") from e
+    return graphs
 
 
 def graph_names() -> list[str]:

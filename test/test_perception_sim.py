@@ -9,7 +9,6 @@ pytest.importorskip("pybullet")
 from skillgen_ros.core.perception import metrics  # noqa: E402
 from skillgen_ros.core.perception.models import models_for_objects  # noqa: E402
 from skillgen_ros.core.perception.pipeline import PerceptionStatus, estimate_poses  # noqa: E402
-from skillgen_ros.core.perception.sim_truth import object_frame_poses  # noqa: E402
 from skillgen_ros.core.sim import SimWorld  # noqa: E402
 from skillgen_ros.core.sim.camera import FRONT_EYE, CameraConfig  # noqa: E402
 from skillgen_ros.core.tasks import TASK_NAMES, get_task  # noqa: E402
@@ -30,7 +29,7 @@ def test_every_object_within_tolerance(world, task):
     spec = get_task(task)
     variant = "D2"
     world.reset(task, variant, 11)
-    truth = object_frame_poses(world)
+    truth = {k: p.matrix() for k, p in world.object_poses().items()}
     models = models_for_objects(spec.objects)
     res = estimate_poses(world.render("front").points_world, models, camera_position=FRONT_EYE)
     assert res.status is PerceptionStatus.OK, res.message
@@ -45,7 +44,7 @@ def test_every_object_within_tolerance(world, task):
 def test_clutter_obstacle_is_an_obstacle_not_an_object(world):
     spec = get_task("Square")
     world.reset("Square", "clutter", 3)
-    truth = object_frame_poses(world)
+    truth = {k: p.matrix() for k, p in world.object_poses().items()}
     res = estimate_poses(world.render("front").points_world, models_for_objects(spec.objects),
                          camera_position=FRONT_EYE)
     assert res.ok, res.message

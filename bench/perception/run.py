@@ -5,7 +5,7 @@ clutter where the task has it), seeds 0..N-1, rendered by core.sim at 640x480 wi
 model on (sigma = a + b z^2, plus dropout). Per object: translation error, symmetry-aware rotation
 error, ADD-S, and whether the estimate landed on a different object (wrong identity); per frame:
 latency of estimate_poses on one core (OMP/BLAS threads pinned to 1), at 640x480 and at the
-sim camera's default resolution. Truth is each body's mesh frame (core.perception.sim_truth).
+sim camera's default resolution. Truth is SimWorld.object_poses() (the objects' mesh frames).
 
 Baseline, measured in the same run on every --baseline-every'th scene: the textbook open3d pipeline
 (FPFH + RANSAC global registration, then 6-DOF point-to-plane ICP; no upright prior, no yaw sweep,
@@ -75,13 +75,12 @@ def _scene(job: tuple) -> dict:
     from skillgen_ros.core.perception.models import models_for_objects
     from skillgen_ros.core.perception.pipeline import PerceptionParams, estimate_poses
     from skillgen_ros.core.perception.pose import PoseParams
-    from skillgen_ros.core.perception.sim_truth import object_frame_poses
     from skillgen_ros.core.sim.camera import FRONT_EYE
     from skillgen_ros.core.tasks import get_task
     task, variant, seed, with_baseline = job
     w = _W["world"]
     w.reset(task, variant, seed)
-    truth = object_frame_poses(w)
+    truth = {k: p.matrix() for k, p in w.object_poses().items()}  # object (mesh) frames
     models = models_for_objects(get_task(task).objects)
     params = PerceptionParams()
     out = {"task": task, "variant": variant, "seed": seed}

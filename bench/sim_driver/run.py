@@ -108,7 +108,9 @@ def over_ros(targets, cameras: bool, domain: int) -> dict:
     rclpy.init()
     node = rclpy.create_node("sim_driver_bench")
     got: list = []
-    node.create_subscription(PoseStamped, "ee_pose", lambda m: got.append(m), 10)
+    from rclpy.event_handler import SubscriptionEventCallbacks
+    node.create_subscription(PoseStamped, "ee_pose", lambda m: got.append(m), 10,
+                             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
     pub = node.create_publisher(OscTarget, "osc_target", 10)
     exe = rclpy.executors.SingleThreadedExecutor()
     exe.add_node(node)

@@ -21,6 +21,7 @@ DELEGATED = {
     "annotate": ("skillgen_ros.cli.annotate", "propose, override and validate skill annotations of a demo bag"),
     "demos": ("skillgen_ros.cli.demos", "record source demonstrations (scripted demonstrator or teleop)"),
     "generate": ("skillgen_ros.cli.generate", "run a generation through the node graph (the main job)"),
+    "dataset": ("skillgen_ros.cli.dataset", "validate or merge generated datasets (shards)"),
 }
 
 

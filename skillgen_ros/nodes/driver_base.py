@@ -24,6 +24,7 @@ import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rosgraph_msgs.msg import Clock
@@ -94,22 +95,28 @@ class DriverNode(Node):
         self._types: dict[str, str] = {}
 
         cb = ReentrantCallbackGroup()
-        self.pub_js = self.create_publisher(convert.JointState, "joint_states", RELIABLE)
-        self.pub_ee = self.create_publisher(PoseStamped, "ee_pose", RELIABLE)
-        self.pub_grip = self.create_publisher(GripperState, "gripper_state", RELIABLE)
-        self.pub_gt = self.create_publisher(ObjectPoseArray, "sim/ground_truth/object_poses", LATCHED)
-        self.pub_err = self.create_publisher(String, "driver/errors", RELIABLE)
-        self.pub_clock = self.create_publisher(Clock, "/clock", RELIABLE) if self.mode == "lockstep" else None
-        self.cam_pubs = {n: {"points": self.create_publisher(convert.PointCloud2, f"camera/{n}/points",
-                                                             qos_profile_sensor_data),
-                             "image": self.create_publisher(Image, f"camera/{n}/image", qos_profile_sensor_data),
-                             "depth": self.create_publisher(Image, f"camera/{n}/depth", qos_profile_sensor_data),
-                             "camera_info": self.create_publisher(CameraInfo, f"camera/{n}/camera_info",
-                                                                  qos_profile_sensor_data),
-                             "pose": self.create_publisher(PoseStamped, f"camera/{n}/pose", qos_profile_sensor_data)}
+        # publishers without default QoS-event handlers: each handler joins every executor wait set,
+        # and with ~20 publishers that rebuild dominated the lockstep round trip (bench/sim_driver)
+        ev = PublisherEventCallbacks(use_default_callbacks=False)
+
+        def pub(typ, topic, qos):
+            return self.create_publisher(typ, topic, qos, event_callbacks=ev)
+        sensor = qos_profile_sensor_data
+        self.pub_js = pub(convert.JointState, "joint_states", RELIABLE)
+        self.pub_ee = pub(PoseStamped, "ee_pose", RELIABLE)
+        self.pub_grip = pub(GripperState, "gripper_state", RELIABLE)
+        self.pub_gt = pub(ObjectPoseArray, "sim/ground_truth/object_poses", LATCHED)
+        self.pub_err = pub(String, "driver/errors", RELIABLE)
+        self.pub_clock = pub(Clock, "/clock", RELIABLE) if self.mode == "lockstep" else None
+        self.cam_pubs = {n: {"points": pub(convert.PointCloud2, f"camera/{n}/points", sensor),
+                             "image": pub(Image, f"camera/{n}/image", sensor),
+                             "depth": pub(Image, f"camera/{n}/depth", sensor),
+                             "camera_info": pub(CameraInfo, f"camera/{n}/camera_info", sensor),
+                             "pose": pub(PoseStamped, f"camera/{n}/pose", sensor)}
                          for n in self.camera_names}
         self.create_subscription(OscTarget, "osc_target", self._on_target, RELIABLE,
-                                 callback_group=MutuallyExclusiveCallbackGroup())
+                                 callback_group=MutuallyExclusiveCallbackGroup(),
+                                 event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
         self.create_service(ResetScene, "reset_scene", self._on_reset, callback_group=cb)
         self.create_service(TaskSuccess, "task_success", self._on_success, callback_group=cb)
         self.traj_server = ActionServer(self, ExecuteTrajectory, "execute_trajectory", self._exec_traj,

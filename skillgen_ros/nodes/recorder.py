@@ -155,7 +155,10 @@ class Recorder(Node):
         self.create_timer(float(p["discovery_period"]), self._discover, callback_group=srv_group)
         if p["autostart"]:
             ok, msg = self.start()
-            if not ok:
+            if not ok:  # stop the io thread first: a spinning executor at exit aborts the process
+                self._io_exec.shutdown(timeout_sec=1.0)
+                self._io_thread.join(timeout=2.0)
+                self._io_node.destroy_node()
                 raise BagError(msg, "RECORDER_START_FAILED")
 
     # -- control ----------------------------------------------------------------------------

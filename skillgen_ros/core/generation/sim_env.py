@@ -97,6 +97,7 @@ class SimGenerationEnv:
         self._last_gripper, self._closing = -1.0, -1
         self._collided = False
         self._models = None
+        self.planner.reseed(seed)  # the attempt's plans depend on (reset seed, plan index) only
         return self.scene
 
     def observe(self) -> Observation:

@@ -5,8 +5,8 @@
 Modules: cloud (crop, voxel, RANSAC table, DBSCAN, voxel hulls), models (object models from
 meshes, symmetry), pose (hypotheses, ICP refinement, render-free visibility scoring), pipeline
 (identity and the whole frame), metrics (ADD, ADD-S, symmetry-aware rotation error), synthetic
-(ray-cast test scenes), sim_truth (mesh-frame ground truth from the pybullet world).
-Pure: no rclpy; pybullet only in sim_truth, imported by tests and benchmarks.
+(ray-cast test scenes), visibility (self- and scene occlusion without rendering).
+Pure: no rclpy, no pybullet.
 """
 from .models import ObjectModel, Symmetry, model_for, models_for_objects  # noqa: F401
 from .pipeline import (EstimatedPose, PerceptionParams, PerceptionResult, PerceptionStatus,  # noqa: F401

@@ -61,44 +61,49 @@ def voxel_downsample(points: np.ndarray, voxel: float) -> np.ndarray:
 
 
 def fit_table_plane(points: np.ndarray, distance: float, up=(0.0, 0.0, 1.0), max_tilt_deg: float = 15.0,
-                    min_inliers: int = 200, sample: int = 4000, iterations: int = 200,
-                    attempts: int = 3, rng: np.random.Generator | None = None) -> Plane | None:
+                    min_inliers: int = 200, sample: int = 4000, iterations: int = 300,
+                    rng: np.random.Generator | None = None) -> Plane | None:
     """RANSAC the dominant plane whose normal is within `max_tilt_deg` of `up`; None if none is found.
 
-    RANSAC runs on a random subsample (the table dominates the view, so a few thousand points find
-    it), then a least-squares refit on the inliers of the whole cloud sharpens it. Planes that are
-    too tilted (a wall, a box side) are removed and the search repeats up to `attempts` times.
+    All candidate planes (random point triples) are scored at once on a random subsample (the
+    table dominates the view, so a few thousand points find it); planes too tilted to be the table
+    (a wall, a box side) are never candidates. Two least-squares refits on the inliers of the whole
+    cloud sharpen the winner. Seeded, so the same cloud always gives the same plane.
     """
     rng = rng or np.random.default_rng(0)
     up = np.asarray(up, float) / np.linalg.norm(up)
-    cand = points
-    cos_tilt = np.cos(np.radians(max_tilt_deg))
-    for _ in range(attempts):
-        if len(cand) < max(min_inliers, 3):
+    if len(points) < max(min_inliers, 3):
+        return None
+    sub = points if len(points) <= sample else points[rng.choice(len(points), sample, replace=False)]
+    tri = sub[rng.integers(0, len(sub), size=(iterations, 3))]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(n, axis=1)
+    n = n[norm > 1e-12] / norm[norm > 1e-12, None]
+    tri = tri[norm > 1e-12]
+    n *= np.sign(n @ up)[:, None]
+    level = n @ up >= np.cos(np.radians(max_tilt_deg))
+    if not level.any():
+        return None
+    n, p0 = n[level], tri[level, 0]
+    d = -np.einsum("ij,ij->i", n, p0)
+    votes = (np.abs(sub @ n.T + d) < distance).sum(axis=0)
+    k = int(np.argmax(votes))
+    if votes[k] * len(points) / len(sub) < min_inliers:
+        return None
+    n, d = n[k], float(d[k])
+    for _ in range(2):
+        sel = np.flatnonzero(np.abs(points @ n + d) < distance)
+        if len(sel) < 3:
             return None
-        sub = cand if len(cand) <= sample else cand[rng.choice(len(cand), sample, replace=False)]
-        o3d.utility.random.seed(int(rng.integers(1 << 31)))
-        model, idx = to_o3d(sub).segment_plane(distance, 3, iterations)
-        n = np.asarray(model[:3], float)
-        scale = np.linalg.norm(n)
-        if scale < 1e-9:
-            return None
-        n, d = n / scale, float(model[3]) / scale
-        if n @ up < 0:
-            n, d = -n, -d
-        dist = cand @ n + d
-        inl = np.abs(dist) < distance
-        if n @ up >= cos_tilt and inl.sum() >= min_inliers:
-            sel = np.flatnonzero(inl)
-            if len(sel) > 20000:
-                sel = rng.choice(sel, 20000, replace=False)
-            n, d = _refit(cand[sel], n)
-            r = cand @ n + d
-            inl = np.abs(r) < distance
-            noise = float(1.4826 * np.median(np.abs(r[sel])))
-            return Plane(n, d, int(inl.sum()), noise)
-        cand = cand[~inl]
-    return None
+        if len(sel) > 20000:
+            sel = sel[:: len(sel) // 20000 + 1]
+        n, d = _refit(points[sel], n)
+    r = points @ n + d
+    inl = int((np.abs(r) < distance).sum())
+    if inl < min_inliers or n @ up < np.cos(np.radians(max_tilt_deg)):
+        return None
+    noise = float(1.4826 * np.median(np.abs(r[sel])))
+    return Plane(n, d, inl, noise)
 
 
 def _refit(points: np.ndarray, n0: np.ndarray) -> tuple[np.ndarray, float]:

@@ -24,6 +24,7 @@ from ..geometry import Pose
 from . import cloud
 from .models import ObjectModel
 from .pose import ClusterFitter, Fit, PoseParams
+from .visibility import OcclusionMap
 
 
 class PerceptionStatus(IntEnum):
@@ -62,6 +63,8 @@ class PerceptionParams:
     noise_gate: float = 3.0             # scoring gate = noise_gate * table noise, clipped to
     max_inlier_distance: float = 0.01   #   [pose.inlier_distance, max_inlier_distance]
     accept_score: float = 0.35          # fitness * coverage needed to call a cluster an object
+    polish_points: int = 1000           # final refinement of each identified object (0: off)
+    occlusion: bool = True              # coverage ignores model points hidden behind other things
     remove_known_objects: bool = True   # obstacle cloud without the recognized task objects
     obstacle_volume: bool = True        # voxel-hull volumes instead of raw points for obstacles
     obstacle_voxel: float = 0.01
@@ -172,14 +175,27 @@ def assign(fits: list[tuple[float, str, frozenset, Fit]], per_object: int = 4) -
 FitList = list[tuple[float, str, frozenset, Fit]]
 
 
+def _occlusion_map(raw: np.ndarray, plane: cloud.Plane, cam, params: PerceptionParams,
+                   max_points: int = 40000) -> OcclusionMap | None:
+    """Everything the camera saw above the table (the arm included, whatever the crop), thinned."""
+    if cam is None or not params.occlusion:
+        return None
+    pts = raw[plane.signed_distance(raw) > params.min_object_height]  # NaN rows compare False
+    if len(pts) == 0:
+        return None
+    return OcclusionMap(pts[:: max(1, len(pts) // max_points)], cam)
+
+
 def _fit_groups(clusters, groups, models: Mapping[str, ObjectModel], plane: cloud.Plane, pose_params: PoseParams,
-                cam, params: PerceptionParams) -> FitList:
+                cam, params: PerceptionParams, occlusion: OcclusionMap | None = None) -> tuple[FitList, dict]:
     """(score, object id, group, fit) for every size-compatible (group, model) pair that scores
-    at least accept_score; ids sharing one ObjectModel share its fits."""
+    at least accept_score, best first (ids sharing one ObjectModel share its fits), and the
+    ClusterFitter of each group."""
     distinct: dict[int, list[str]] = {}
     for i in models:
         distinct.setdefault(id(models[i]), []).append(i)
     fits: FitList = []
+    fitters: dict = {}
     for g in groups:
         pts_g = np.concatenate([clusters[c] for c in sorted(g)])
         fitter = None
@@ -189,11 +205,27 @@ def _fit_groups(clusters, groups, models: Mapping[str, ObjectModel], plane: clou
             if not _compatible(pts_g, plane, m, params.size_margin, upright_only):
                 continue
             fitter = fitter or ClusterFitter(pts_g, plane.normal, pose_params, cam, seed=min(g),
-                                             table_offset=plane.offset)
+                                             table_offset=plane.offset, occlusion=occlusion)
+            fitters[g] = fitter
             f = fitter.fit(m)
             if f is not None and f.score >= params.accept_score:
                 fits += [(f.score, i, g, f) for i in same]
-    return sorted(fits, key=lambda x: -x[0])
+    return sorted(fits, key=lambda x: -x[0]), fitters
+
+
+def _polish(chosen: dict, fitters: dict, models: Mapping[str, ObjectModel], n_points: int) -> dict:
+    """One more refinement of each identified object with (up to) n_points of its cluster: the
+    search ran on subsamples, which leaves a little sampling noise in yaw on small faces."""
+    out = {}
+    for i, (g, f) in chosen.items():
+        fitter, m = fitters[g], models[i]
+        if not fitter.p.upright or n_points <= 0:
+            out[i] = (g, f)
+            continue
+        T = fitter.refine_upright(m, f.T, fitter.p.fine_iterations, n_points)
+        f2 = fitter.score(m, T, n_points, exact=True)
+        out[i] = (g, f2 if f2.score >= 0.98 * f.score else f)
+    return out
 
 
 def _identify(fits: FitList, models: Mapping[str, ObjectModel]) -> tuple[dict, set[str]]:
@@ -286,13 +318,16 @@ def estimate_poses(points_world: np.ndarray, models: Mapping[str, ObjectModel],
     t = lap("cluster", t)
 
     cam = None if camera_position is None else np.asarray(camera_position, float)
+    occlusion = _occlusion_map(raw, plane, cam, params)
     # Scoring gate follows the depth noise measured on the table (never tighter than configured).
     tau = float(np.clip(max(params.noise_gate * plane.noise, 0.75 * spacing),
                         params.pose.inlier_distance, params.max_inlier_distance))
     groups = candidate_groups(clusters, max(params.group_distance, 3.0 * spacing))
-    fits = _fit_groups(clusters, groups, models, plane, replace(params.pose, inlier_distance=tau), cam, params)
-    t = lap("pose", t)
+    fits, fitters = _fit_groups(clusters, groups, models, plane, replace(params.pose, inlier_distance=tau), cam,
+                                params, occlusion)
     chosen, ambiguous = _identify(fits, models)
+    chosen = _polish(chosen, fitters, models, params.polish_points)
+    t = lap("pose", t)
     used: set[int] = set().union(*(g for g, _ in chosen.values())) if chosen else set()
     poses = {i: EstimatedPose(Pose.from_matrix(f.T), f.score, models[i].type, f.fitness, f.coverage, f.rmse)
              for i, (g, f) in chosen.items() if i not in ambiguous and i in wanted}

@@ -3,12 +3,14 @@
 FoundationPose (the paper's estimator) needs network weights and a GPU; this module keeps its
 structure with classical parts:
   1. hypotheses - objects rest upright on the table, so a sweep of yaws about the table normal
-     (one symmetry period only) placed at the cluster covers every distinct pose; optionally
-     FPFH + RANSAC global registration adds free 6-DOF hypotheses;
-  2. refinement - symmetric trimmed ICP (cluster -> model and visible model -> cluster) in 4 DOF
-     (yaw + translation) for upright hypotheses, open3d point-to-plane ICP for 6-DOF ones;
-  3. scoring - fitness (cluster points explained by the model), coverage (model points that face
-     the camera and have data near them: the render-free visibility test), inlier RMSE;
+     (one symmetry period only) placed at the cluster covers every distinct pose, and a cluster
+     that reaches the table takes its height from contact; optionally FPFH + RANSAC global
+     registration adds free 6-DOF hypotheses;
+  2. refinement - a batched coarse ICP of all yaws through the model's nearest-point grid, then
+     symmetric trimmed ICP (cluster -> model and visible model -> cluster) in 4 DOF for the best
+     few; open3d point-to-plane ICP for 6-DOF hypotheses;
+  3. scoring - fitness (cluster points explained by the model) x coverage (model points the
+     camera should see, per visibility.py, that have data near them), plus inlier RMSE;
   4. selection - the best score; symmetric yaws are never compared since only one period is swept.
 """
 from __future__ import annotations
@@ -22,6 +24,7 @@ from scipy.spatial import cKDTree
 
 from .cloud import to_o3d
 from .models import ObjectModel, nearest_grid
+from .visibility import OcclusionMap, visible_mask
 
 _UP = np.array([0.0, 0.0, 1.0])
 _HALF_TURNS = [np.diag(d) for d in ([1.0, 1, 1, 1], [1.0, -1, -1, 1], [-1.0, 1, -1, 1], [-1.0, -1, 1, 1])]
@@ -34,7 +37,8 @@ class PoseParams:
     yaw_steps: int = 24              # hypotheses over a full turn; divided by the symmetry order
     coarse_iterations: int = 6
     fine_iterations: int = 12
-    keep: int = 2                    # hypotheses that survive the coarse round
+    keep: int = 2                    # hypotheses refined after the coarse round
+    rank: int = 6                    # coarse survivors (by fitness) ranked by the full score
     coarse_points: int = 100         # cluster / model subsample sizes per ICP round
     fine_points: int = 250
     score_points: int = 400          # cluster / visible-model samples behind a final score
@@ -79,64 +83,6 @@ def _rz(yaw: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-_VIEW_STEP = np.radians(3.0)  # viewpoint quantization of the visibility cache
-_VIEW_DIST = 0.05
-
-
-def visible_mask(model: ObjectModel, T: np.ndarray, camera: np.ndarray | None) -> np.ndarray:
-    """Model points the camera would see at pose T, without rendering.
-
-    Visibility depends only on where the camera is in the object's frame; that position is
-    quantized (3 degrees of azimuth and elevation, 5 cm of range) and the answer cached per
-    model, so after a few frames the test costs a dictionary lookup. Without a camera position
-    the view is assumed to come from above (upward-facing normals only).
-    """
-    R, t = T[:3, :3], T[:3, 3]
-    if camera is None:
-        return (model.normals @ R.T) @ _UP > 0.0
-    c = R.T @ (np.asarray(camera, float) - t)       # camera in the object frame
-    dist = float(np.linalg.norm(c))
-    az, el = np.arctan2(c[1], c[0]), np.arcsin(np.clip(c[2] / max(dist, 1e-9), -1.0, 1.0))
-    key = (int(round(az / _VIEW_STEP)), int(round(el / _VIEW_STEP)), int(round(dist / _VIEW_DIST)))
-    return _visible_from(model, key)
-
-
-@lru_cache(maxsize=20000)
-def _visible_from(model: ObjectModel, key: tuple[int, int, int]) -> np.ndarray:
-    az, el, dist = key[0] * _VIEW_STEP, key[1] * _VIEW_STEP, max(key[2] * _VIEW_DIST, _VIEW_DIST)
-    cam = dist * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
-    return zbuffer_visible(model.points, model.normals, cam)
-
-
-def zbuffer_visible(points: np.ndarray, normals: np.ndarray, camera: np.ndarray,
-                    bin_rad: float = 0.006, depth_tol: float = 0.004) -> np.ndarray:
-    """Back-face test (outward normal towards the camera), then a point-splat z-buffer: points
-    are binned by viewing direction (`bin_rad` wide, a few times the model's sampling angle) and
-    only those within `depth_tol` of the nearest point of their bin survive, which removes
-    self-occluded surfaces (a nut's far wall, internal faces of overlapping parts)."""
-    v = points - camera
-    facing = np.einsum("ij,ij->i", normals, v) < 0.0
-    idx = np.flatnonzero(facing)
-    if len(idx) == 0:
-        return facing
-    v = v[idx]
-    r = np.linalg.norm(v, axis=1)
-    c0 = -camera / np.linalg.norm(camera)            # looking at the object origin
-    e1 = np.cross(c0, _UP if abs(c0 @ _UP) < 0.9 else np.array([1.0, 0.0, 0.0]))
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(c0, e1)
-    depth = np.maximum(v @ c0, 1e-6)
-    ij = np.floor(np.stack([v @ e1, v @ e2], axis=1) / (depth[:, None] * bin_rad)).astype(np.int64)
-    key = (ij[:, 0] << 32) + ij[:, 1]
-    _, inv = np.unique(key, return_inverse=True)
-    zmin = np.full(inv.max() + 1, np.inf)
-    np.minimum.at(zmin, inv, r)
-    out = np.zeros(len(points), bool)
-    out[idx[r <= zmin[inv] + depth_tol]] = True
-    out.setflags(write=False)
-    return out
-
-
 @lru_cache(maxsize=256)
 def _model_subsample(model: ObjectModel, k: int) -> np.ndarray:
     """A fixed, evenly spread subset of the model's points (indices) for the model -> cluster term."""
@@ -152,7 +98,8 @@ class ClusterFitter:
     """Fits models to one cluster; the cluster's KD-tree is built once and shared by all models."""
 
     def __init__(self, points: np.ndarray, up: np.ndarray, params: PoseParams,
-                 camera: np.ndarray | None = None, seed: int = 0, table_offset: float | None = None):
+                 camera: np.ndarray | None = None, seed: int = 0, table_offset: float | None = None,
+                 occlusion: OcclusionMap | None = None):
         """table_offset: d of the table plane n.x + d = 0 (n = up). When given and the cluster
         reaches down to the table, the object is taken to rest on it: its height is fixed by
         contact instead of being fitted, which removes the depth-noise bias thin-walled or
@@ -168,6 +115,7 @@ class ClusterFitter:
                 self.table_z = -float(table_offset)
         self.p = params
         self.camera = None if camera is None else np.asarray(camera, float)
+        self.occlusion = occlusion
         self.rng = np.random.default_rng(seed)
 
     # ------------------------------------------------------------------ hypotheses
@@ -302,9 +250,12 @@ class ClusterFitter:
         mv = model.points[visible_mask(model, T, self.camera)]
         if len(mv) > n_points:
             mv = mv[_subsample(len(mv), n_points, self.rng)]
+        mw = mv @ T[:3, :3].T + T[:3, 3]
+        if self.occlusion is not None:   # hidden behind something the camera saw: not a miss
+            mw = mw[~self.occlusion.occluded(mw, max(4 * tau, 0.01))]
         coverage = 0.0
-        if len(mv):
-            d2, _ = self.tree.query(mv @ T[:3, :3].T + T[:3, 3], distance_upper_bound=tau)
+        if len(mw):
+            d2, _ = self.tree.query(mw, distance_upper_bound=tau)
             coverage = float(np.isfinite(d2).mean())
         rmse = float(np.sqrt(np.mean(d[inl] ** 2))) if inl.any() else float("inf")
         return Fit(T, float(inl.mean()) if len(q) else 0.0, coverage, rmse)
@@ -317,7 +268,7 @@ class ClusterFitter:
         if p.upright:
             Ts, fitness = self.coarse_upright(model, self.upright_hypotheses(model))
             # cheap cluster->model fitness preselects; the full score (with coverage) ranks the rest
-            coarse += [(Ts[i], True) for i in np.argsort(-fitness)[: p.keep + 1]]
+            coarse += [(Ts[i], True) for i in np.argsort(-fitness)[: p.rank]]
         if p.global_registration or not p.upright:
             coarse += [(self.refine_6dof(model, T, p.coarse_iterations), False)
                        for T in self.global_hypotheses(model)]

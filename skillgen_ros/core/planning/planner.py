@@ -12,6 +12,13 @@
 During retreat and approach the hand may touch the manipulated object, and the held object may
 touch its support; transit and transfer allow no contact. The whole path is timed with ruckig.
 The result is a complete immutable value: status, trajectory, joint path, phase timings.
+
+IK randomness (restarts) is drawn per plan() call from SeedSequence((seed, k)), k counting the
+calls since `reseed(seed)`. RRT-Connect is OMPL's, whose sampler RNG is process-wide and can be
+seeded only once (at the first plan with a seed): a fresh process with the same seed plans the
+same paths, but within one process the RRT samples depend on what was planned before. (OMPL 2's
+Python bindings expose no state-sampler allocator to inject a per-call generator.) IK and RRT are
+time-budgeted: a search cut by its timeout still depends on CPU speed.
 """
 from __future__ import annotations
 
@@ -23,6 +30,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..geometry import Pose, validate_pose
+from . import kernels
 from .collision import AllowedContacts, AttachedObject, CollisionModel
 from .ik import IKSolver
 from .kinematics import PandaKinematics
@@ -80,8 +88,29 @@ class MotionPlanner:
         self.ik_timeout = float(ik_timeout)
         self.ik_solutions = int(ik_solutions)
         self.velocity_scale = float(velocity_scale)
-        self.seed = seed
+        self.seed: int | None = None
+        self._calls = 0
         self.rrt = JointSpaceRRT(kin.lower, kin.upper)
+        if seed is not None:
+            self.reseed(seed)
+
+    def reseed(self, seed: int) -> None:
+        """Restart the IK randomness: the k-th plan() after this draws its IK restarts from (seed, k)
+        only. The IK solver's `rng` (shared with its other users) is replaced per call. The RRT's
+        OMPL sampler is seeded once per process (see the module docstring)."""
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise InvalidInputError(f"planner seed must be an int >= 0, got {seed!r}")
+        self.seed, self._calls = int(seed), 0
+
+    def _call_rng(self) -> None:
+        """Per-call IK streams (the IK's rng and numba's restart RNG); without a seed the IK keeps
+        its own stream."""
+        if self.seed is None:
+            return
+        ik_seq = np.random.SeedSequence((self.seed, self._calls))
+        self._calls += 1
+        self.ik.rng = np.random.default_rng(ik_seq)
+        kernels.seed_rng(int(self.ik.rng.integers(2**31)))
 
     def plan(self, start_q, target: Pose, mode: Mode = Mode.TRANSIT,
              attached: AttachedObject | None = None, manipulated: str | None = None,
@@ -96,6 +125,7 @@ class MotionPlanner:
         """
         t_all = time.perf_counter()
         timings: dict[str, float] = {}
+        self._call_rng()  # every call takes its index, whatever its outcome
         try:
             q0 = self.kin._check(start_q)
             target = validate_pose(target.position, target.quaternion, "target")

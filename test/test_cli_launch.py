@@ -1,0 +1,80 @@
+"""`skillgen run` / `skillgen launch`: resolution, Ctrl-C forwarding, a dying node, clear errors."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import psutil
+
+from conftest import REPO, node_env, wait_for
+
+SKILLGEN = [sys.executable, "-m", "skillgen_ros.cli.main"]
+
+
+def _run(args, env, timeout=60):
+    return subprocess.run(SKILLGEN + args, env=env, capture_output=True, text=True, timeout=timeout, cwd=REPO)
+
+
+def test_unknown_graph_and_node_give_one_line_errors(ros_domain, tmp_path):
+    env = node_env(ros_domain)
+    r = _run(["launch", "no_such_graph"], env)
+    assert r.returncode == 2 and "UNKNOWN_GRAPH" in r.stderr and "Traceback" not in r.stderr
+    r = _run(["run", "no_such_node"], env)
+    assert r.returncode == 2 and "UNKNOWN_NODE" in r.stderr and "Traceback" not in r.stderr
+    bad = tmp_path / "graphs.yaml"
+    bad.write_text("graphs:\n  broken:\n    nodes:\n      - exe: warp_drive\n")
+    r = _run(["launch", "broken"], node_env(ros_domain, SKILLGEN_GRAPHS=bad))
+    assert r.returncode == 2 and "UNKNOWN_NODE" in r.stderr and "warp_drive" in r.stderr
+
+
+def test_invalid_params_file_is_a_clear_error(ros_domain, tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("mock_driver: [this is: not a params file\n")
+    r = _run(["run", "mock_driver", "--ros-args", "--params-file", str(bad)], node_env(ros_domain))
+    assert r.returncode == 2 and "INVALID_PARAMETER" in r.stderr and "Traceback" not in r.stderr
+    wrong = tmp_path / "wrong.yaml"
+    wrong.write_text("mock_driver:\n  ros__parameters:\n    control_hz: fast\n")
+    r = _run(["run", "mock_driver", "--ros-args", "--params-file", str(wrong)], node_env(ros_domain))
+    assert r.returncode == 2 and "INVALID_PARAMETER" in r.stderr and "Traceback" not in r.stderr
+
+
+def _children(p):
+    return psutil.Process(p.pid).children()
+
+
+def test_launch_forwards_ctrl_c_to_every_node(ros_domain, tmp_path):
+    p = subprocess.Popen(SKILLGEN + ["launch", "mock_record"], env=node_env(ros_domain),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+                         start_new_session=True)
+    try:
+        assert wait_for(lambda: len(_children(p)) == 2, 20)
+        kids = _children(p)
+        time.sleep(3.0)  # let the nodes finish starting
+        p.send_signal(signal.SIGINT)
+        assert p.wait(30) == 0, p.stderr.read()
+        bags = list(tmp_path.glob("bags/rec_*"))
+        assert bags and (bags[0] / "metadata.yaml").exists()  # the recorder finalized its bag
+        assert not any(k.is_running() and k.status() != psutil.STATUS_ZOMBIE for k in kids)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+
+
+def test_launch_names_the_node_that_died_and_stops_the_rest(ros_domain, tmp_path):
+    p = subprocess.Popen(SKILLGEN + ["launch", "mock_record"], env=node_env(ros_domain),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+                         start_new_session=True)
+    try:
+        assert wait_for(lambda: len(_children(p)) == 2, 20)
+        time.sleep(2.0)
+        victim = next(k for k in _children(p) if "mock_driver" in " ".join(k.cmdline()))
+        others = [k for k in _children(p) if k.pid != victim.pid]
+        victim.kill()
+        rc = p.wait(30)
+        err = p.stderr.read()
+        assert rc != 0 and "'mock_driver'" in err, err
+        assert all(not k.is_running() or k.status() == psutil.STATUS_ZOMBIE for k in others)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)

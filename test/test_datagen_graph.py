@@ -20,6 +20,7 @@ NODES = {
     "planner": [],
     "skill_replay": [],
     "datagen": ["-p", "timeout_perception:=8.0", "-p", "timeout_plan:=8.0"],
+    "recorder": ["-p", "autostart:=false", "-p", "topics:=[joint_states, osc_target, camera/front/image]"],
 }
 
 
@@ -81,8 +82,15 @@ def test_bad_requests_are_rejected_with_a_reason(graph, tmp_path):
 def test_seeded_attempts_produce_a_valid_robomimic_dataset(graph, tmp_path):
     _, _, client = graph
     out = tmp_path / "run"
-    res = _run(client, attempts=3, output_dir=str(out))
+    res = _run(client, attempts=3, output_dir=str(out), record_bag=True, record_first=1, record_count=1)
     assert res.accepted and res.reason == "OK", res.message
+    # the session bag holds attempt 1 only, and a third-party reader opens it
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([Path(res.bag_path)]) as r:
+        n = sum(1 for _ in r.messages(connections=[c for c in r.connections if c.topic == "/osc_target"]))
+    assert 0 < n < 450, n  # one attempt's skill steps, not three
+    assert (out / "attempts.mp4").stat().st_size > 0
     assert res.attempts == 3 and res.successes >= 1, [(f.reason, f.count) for f in res.failures]
     summary = validate_dataset(res.dataset_path)
     assert summary.num_demos == res.successes

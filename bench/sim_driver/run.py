@@ -207,6 +207,8 @@ def main() -> int:
         k: 1e3 * (res[f"ros_lockstep_{k}"]["wall_s"] - res[f"in_process_{k}"]["wall_s"]) / n
         for k in ("no_cameras", "cameras")}
     res["overhead_goal"] = 1.5
+    res["notes"] = ("wall-time ratios are only meaningful on an otherwise idle machine (compare loadavg); "
+                    "on a shared one the CPU-time ratios measure the graph's cost")
     res["scripted_success"] = scripted_rates(seeds)
     res["machine"]["loadavg_end"] = os.getloadavg()
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)

@@ -35,6 +35,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--source-demos", default="", help="directory of source bags (default bags/<task>)")
     p.add_argument("--output", default="", help="output directory (default out/<task>_<variant>_<method>_seed<seed>)")
     p.add_argument("--no-bag", action="store_true", help="do not record the session to MCAP")
+    p.add_argument("--record", default="", metavar="FIRST:COUNT",
+                   help="record only attempts FIRST..FIRST+COUNT-1 of the run (default: all)")
     p.add_argument("--in-process", action="store_true", help="run without the ROS graph")
     p.add_argument("--perception", default="estimate", choices=["estimate", "ground_truth"],
                    help="in-process only; the graph uses params/perception.yaml")
@@ -51,6 +53,18 @@ def _output(a) -> str:
         a._auto_output = os.path.join("out", f"{a.task}_{a.variant}_{a.method}{'_ia' if a.augment else ''}"
                                              f"_seed{a.seed}_{stamp}")
     return a._auto_output
+
+
+def _window(spec: str) -> tuple[int, int]:
+    if not spec:
+        return 0, 0
+    try:
+        first, count = (int(x) for x in spec.split(":"))
+    except ValueError:
+        raise SkillGenError(f"--record wants FIRST:COUNT, got {spec!r}", reason="INVALID_ARGUMENT") from None
+    if first < 0 or count <= 0:
+        raise SkillGenError(f"--record wants FIRST >= 0 and COUNT > 0, got {spec!r}", reason="INVALID_ARGUMENT")
+    return first, count
 
 
 def _print_result(attempts, successes, failures: dict, paths: dict) -> None:
@@ -119,7 +133,8 @@ def run_graph(a) -> int:
                              target_successes=a.target_successes, seed=a.seed, first_index=a.first_index,
                              augment=a.augment, augment_translation=0.08, augment_rotation_deg=80.0,
                              selection=a.selection, source_demos=a.source_demos, output_dir=_output(a),
-                             record_bag=not a.no_bag)
+                             record_bag=not a.no_bag, record_first=_window(a.record)[0],
+                             record_count=_window(a.record)[1])
         if not ok:
             raise SkillGenError("datagen rejected the goal (busy)", reason="REJECTED")
         bar = tqdm(total=a.attempts, unit="attempt", dynamic_ncols=True)

@@ -57,6 +57,8 @@ class DatagenNode(Node):
         cb = ReentrantCallbackGroup()
         self.rec_start = self.create_client(Recorder, "recorder/start", callback_group=cb)
         self.rec_stop = self.create_client(Recorder, "recorder/stop", callback_group=cb)
+        self.rec_pause = self.create_client(Recorder, "recorder/pause", callback_group=cb)
+        self.rec_resume = self.create_client(Recorder, "recorder/resume", callback_group=cb)
         self.server = ActionServer(self, Generate, "generate", self._execute, goal_callback=self._on_goal,
                                    cancel_callback=lambda _g: CancelResponse.ACCEPT,
                                    callback_group=MutuallyExclusiveCallbackGroup())
@@ -114,8 +116,15 @@ class DatagenNode(Node):
         def stop():
             return "CANCELED" if goal_handle.is_cancel_requested else ""
 
+        window = (int(g.record_first), int(g.record_first) + int(g.record_count)) if g.record_count else None
+
+        def before_attempt(k: int) -> None:  # record only the chosen range of attempts
+            if bag and window:
+                self._recorder_call(self.rec_resume if window[0] <= k < window[1] else self.rec_pause)
+
         try:
-            run = run_generation(self.env, demos, get_task(req.task), req, on_progress=progress, should_stop=stop)
+            run = run_generation(self.env, demos, get_task(req.task), req, on_progress=progress, should_stop=stop,
+                                 before_attempt=before_attempt)
             res.reason = run.stopped_early or "OK"
             res.message = f"{run.successes}/{run.attempts} attempts succeeded"
         except SkillGenError as e:  # a request-level failure mid-run: partial dataset stays valid
@@ -173,10 +182,14 @@ class DatagenNode(Node):
         return r.bag_path or path
 
     def _stop_bag(self) -> None:
+        self._recorder_call(self.rec_stop, 15.0)
+
+    def _recorder_call(self, client, timeout: float = 5.0):
         ev = threading.Event()
-        fut = self.rec_stop.call_async(Recorder.Request())
+        fut = client.call_async(Recorder.Request())
         fut.add_done_callback(lambda _f: ev.set())
-        ev.wait(15.0)
+        ev.wait(timeout)
+        return fut.result() if fut.done() else None
 
 
 def main(args=None) -> int:

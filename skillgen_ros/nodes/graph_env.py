@@ -20,8 +20,8 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import JointState
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import String
 
 from skillgen_interfaces.action import ReplaySkill
@@ -67,6 +67,9 @@ class RosGraphEnv:
         node.create_subscription(PoseStamped, "ee_pose", self._on_ee, 10, callback_group=group)
         node.create_subscription(JointState, "joint_states", self._on_joints, 10, callback_group=group)
         node.create_subscription(GripperState, "gripper_state", self._on_gripper, 10, callback_group=group)
+        node.create_subscription(Image, "camera/front/image", self._on_image, qos_profile_sensor_data,
+                                 callback_group=group)
+        self._frames: list | None = None
         self.kin = PandaKinematics()
         self.task = ""
         self.scene_objects = []
@@ -94,6 +97,20 @@ class RosGraphEnv:
         if not np.any(self._fingers):
             with self._lock:
                 self._fingers = np.array([m.width / 2, m.width / 2])
+
+    def _on_image(self, m: Image):
+        frames = self._frames
+        if frames is not None and m.encoding in ("rgb8", "bgr8") and len(frames) < 2000:
+            img = np.frombuffer(bytes(m.data), np.uint8).reshape(m.height, m.width, 3)
+            frames.append(img[..., ::-1] if m.encoding == "bgr8" else img)
+
+    # -- video of a few attempts (session.run_generation calls these)
+    def start_capture(self) -> None:
+        self._frames = []
+
+    def stop_capture(self) -> list:
+        frames, self._frames = self._frames or [], None
+        return frames
 
     # -- plumbing
     def _call(self, client, request, timeout: float, what: str, reason: str):

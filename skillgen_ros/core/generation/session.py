@@ -117,10 +117,11 @@ class RunResult:
 def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: RunRequest,
                    on_progress: Callable[[Progress], None] | None = None,
                    should_stop: Callable[[], str] | None = None, write_report: bool = True,
-                   keep_timings: bool = True) -> RunResult:
+                   keep_timings: bool = True, before_attempt: Callable[[int], None] | None = None) -> RunResult:
     """Run the request's attempts over `env`; returns counts, files and the per-attempt results.
 
-    should_stop() returning a non-empty reason ends the run cleanly after the current attempt.
+    should_stop() returning a non-empty reason ends the run cleanly after the current attempt;
+    before_attempt(k) runs before the k-th attempt of the run (e.g. to record only some of them).
     """
     from ..dataset.report import RunSummary, write_report as _write_report
     from ..dataset.sink import AttemptSink, make_env_args
@@ -140,6 +141,8 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
                 out.stopped_early = stop
                 break
             index = req.first_index + k
+            if before_attempt:
+                before_attempt(k)
             capture = hasattr(env, "start_capture") and len(clips) < req.video_attempts
             if capture:
                 env.start_capture()

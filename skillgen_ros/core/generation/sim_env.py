@@ -39,6 +39,7 @@ class SimEnvConfig:
     camera_width: int = 320  # perception camera resolution (estimate mode / cloud collisions)
     camera_height: int = 240
     depth_noise: float = 0.001
+    video: bool = True  # front view for the run's MP4 (160x120 unless perception renders it; only while capturing)
     seed: int = 0
 
     def __post_init__(self):
@@ -77,6 +78,8 @@ class SimGenerationEnv:
                                      noise_base=config.depth_noise))
         if config.images:
             cams.append(CameraConfig("wrist", config.image_size, config.image_size))
+        if config.video and not any(c.name == "front" for c in cams):
+            cams.append(CameraConfig("front", 160, 120))
         self.world = world or SimWorld(cameras=tuple(cams))
         self.kin = PandaKinematics()
         self.cm = CollisionModel(self.kin)
@@ -88,6 +91,8 @@ class SimGenerationEnv:
         self._estimates: dict[str, Pose] = {}
         self._collided = False
         self._models = None
+        self._frames: list | None = None
+        self._capture_k = 0
 
     # -- GenerationEnv
     def reset(self, task: str, variant: str, seed: int):
@@ -200,6 +205,7 @@ class SimGenerationEnv:
             if others and w.robot_in_collision_with(others):
                 self._collided = True
             observations.append(self.observe())
+            self._capture_frame()
             if done is not None:
                 break
         return ("SUCCESS" if done.code.name == "SUCCESSFUL" else "EXECUTION_FAILED"), observations
@@ -207,7 +213,24 @@ class SimGenerationEnv:
     def step(self, target: Pose, gripper: float) -> Observation:
         self.world.step(target, gripper)
         self._track_grasp(float(gripper))
+        self._capture_frame()
         return self.observe()
+
+    # -- video of a few attempts (session.run_generation calls these)
+    def start_capture(self) -> None:
+        self._frames, self._capture_k = [], 0
+
+    def stop_capture(self) -> list:
+        frames, self._frames = self._frames or [], None
+        return frames
+
+    def _capture_frame(self) -> None:
+        if self._frames is None:
+            return
+        self._capture_k += 1
+        if self._capture_k % 2 == 0:  # 10 fps of a 20 Hz attempt
+            if "front" in self.world.cameras:
+                self._frames.append(self.world.render("front").rgb)
 
     def _track_grasp(self, gripper: float) -> None:
         """Rigid attachment from the command stream: a few periods after the hand closes on the

@@ -3,9 +3,11 @@
 For each task, --scenes scenes (200; --quick: 12) spread evenly over its variants (D0, D1, D2 and
 clutter where the task has it), seeds 0..N-1, rendered by core.sim at 640x480 with the depth-noise
 model on (sigma = a + b z^2, plus dropout). Per object: translation error, symmetry-aware rotation
-error, ADD-S, and whether the estimate landed on a different object (wrong identity); per frame:
-latency of estimate_poses on one core (OMP/BLAS threads pinned to 1), at 640x480 and at the
-sim camera's default resolution. Truth is SimWorld.object_poses() (the objects' mesh frames).
+error, ADD-S, and whether the estimate landed on a different object (wrong identity), at 640x480
+and at the sim camera's default resolution. Latency: per frame CPU and wall time of
+estimate_poses with OMP/BLAS threads pinned to 1, recorded in the accuracy pass (pool workers
+compete for the cores) and in a separate single-process pass of 25 scenes per task
+(latency_single_process; the latency goal is judged on this one). Truth is SimWorld.object_poses() (the objects' mesh frames).
 
 Baseline, measured in the same run on every --baseline-every'th scene: the textbook open3d pipeline
 (FPFH + RANSAC global registration, then 6-DOF point-to-plane ICP; no upright prior, no yaw sweep,
@@ -109,6 +111,34 @@ def _scene(job: tuple) -> dict:
     return out
 
 
+def _latency(task: str, n: int, noise) -> dict:
+    """Per-frame latency of estimate_poses in this process alone (no pool workers competing for
+    the cores): n scenes of `task` at 640x480 and at the default resolution, CPU and wall time."""
+    from skillgen_ros.core.perception.models import models_for_objects
+    from skillgen_ros.core.perception.pipeline import PerceptionParams, estimate_poses
+    from skillgen_ros.core.sim.camera import FRONT_EYE
+    from skillgen_ros.core.tasks import get_task
+    if "world" not in _W:
+        _init(noise)
+    w, spec = _W["world"], get_task(task)
+    models, params = models_for_objects(spec.objects), PerceptionParams()
+    out = {}
+    for name in ("hi", "default"):
+        w.cameras["front"] = _W["cams"][name]
+        cpu, wall = [], []
+        for i in range(n):
+            w.reset(task, spec.variants[i % len(spec.variants)], 10_000 + i)
+            pts = w.render("front").points_world
+            c, t = time.process_time(), time.perf_counter()
+            estimate_poses(pts, models, params, FRONT_EYE)
+            cpu.append(time.process_time() - c)
+            wall.append(time.perf_counter() - t)
+        out[name] = {"frames": n, "cpu_median_ms": float(np.median(cpu) * 1000),
+                     "cpu_p95_ms": float(np.percentile(cpu, 95) * 1000),
+                     "wall_median_ms": float(np.median(wall) * 1000), "wall_p95_ms": float(np.percentile(wall, 95) * 1000)}
+    return out
+
+
 def _stats(frames: list[dict], key: str) -> dict:
     objs = [o for f in frames if key in f for o in f[key]["objects"]]
     found = [o for o in objs if o["found"]]
@@ -160,6 +190,10 @@ def main(argv=None) -> int:
     with ProcessPoolExecutor(args.workers, initializer=_init, initargs=(tuple(args.noise),)) as ex:
         frames = list(ex.map(_scene, jobs, chunksize=4))
     wall = time.time() - t0
+    lat_n = 6 if args.quick else 25
+    latency = {task: _latency(task, lat_n, tuple(args.noise)) for task in TASK_NAMES}
+    lat_all = {k: float(np.median([latency[t][res][k] for t in TASK_NAMES]))
+               for res in ("hi",) for k in ("cpu_median_ms", "wall_median_ms")}
 
     from skillgen_ros.core.sim.camera import CameraConfig
     d = CameraConfig("front")
@@ -181,8 +215,9 @@ def main(argv=None) -> int:
         "adds_lt_1cm_rate": {"goal": GOALS["adds_lt_1cm_rate"], "value": hi["adds_lt_1cm_rate"]},
         "trans_median_mm": {"goal": GOALS["trans_median_mm"], "value": hi["trans_median_mm"]},
         "rot_median_deg": {"goal": GOALS["rot_median_deg"], "value": hi["rot_median_deg"]},
-        "latency_640x480_ms": {"goal": GOALS["latency_640x480_ms"], "value": hi["cpu_median_ms"],
-                               "measure": "median CPU time per frame on one thread (wall time in overall.hi)"},
+        "latency_640x480_ms": {"goal": GOALS["latency_640x480_ms"], "value": lat_all["wall_median_ms"],
+                               "measure": "median over tasks of the median wall time per frame, one process, "
+                                          "one thread (latency_single_process)"},
     }
     for k, g in goals.items():
         g["met"] = bool(g["value"] >= g["goal"]) if k == "adds_lt_1cm_rate" else bool(g["value"] <= g["goal"])
@@ -203,6 +238,7 @@ def main(argv=None) -> int:
                                f"{args.baseline_every}th scene", "workers": args.workers, "wall_s": wall},
         "goals": goals,
         "ratios_ours_over_baseline": ratios,
+        "latency_single_process": latency,
         "phase_median_ms_640x480": {k: float(np.median(v)) for k, v in phases.items()},
         **report,
         "failures": [{"task": f["task"], "variant": f["variant"], "seed": f["seed"], "status": f["hi"]["status"],
@@ -212,7 +248,7 @@ def main(argv=None) -> int:
     }
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=1))
-    print(json.dumps({"goals": goals, "ratios_ours_over_baseline": ratios,
+    print(json.dumps({"goals": goals, "ratios_ours_over_baseline": ratios, "latency_single_process": latency,
                       "overall_640x480": hi, "overall_default_res": report["overall"]["default"],
                       "baseline": base}, indent=1))
     print(f"wrote {args.out} ({len(frames)} scenes, {wall:.0f} s)")

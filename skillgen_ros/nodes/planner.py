@@ -229,8 +229,13 @@ class PlannerNode(Node):
             start_support = _support(obstacles, boxes[attached.name].pose[:3, 3]) or "table"
             T_obj_goal = target.matrix() @ (np.linalg.inv(T0) @ boxes[attached.name].pose)
             goal_support = _support(obstacles, T_obj_goal[:3, 3]) or "table"
+        released_support = None
+        if released is not None:  # what it was put on or into (a peg through a nut, a bin)
+            others = {k: b for k, b in obstacles.items() if k != released}
+            c = obstacles[released].pose[:3, 3]
+            released_support = _containing(others, c) or _support(others, c)
         result = self.planner.plan(q0, target, mode, attached, manipulated, released,
-                                   start_support, goal_support, timeout)
+                                   start_support, goal_support, timeout, released_support=released_support)
         return result.status, result.message, result
 
     # -- output ------------------------------------------------------------------------------

@@ -93,6 +93,8 @@ class SimGenerationEnv:
         self._models = None
         self._frames: list | None = None
         self._capture_k = 0
+        self._last_attached: str | None = None
+        self._last_support: str | None = None
 
     # -- GenerationEnv
     def reset(self, task: str, variant: str, seed: int):
@@ -100,6 +102,7 @@ class SimGenerationEnv:
         self._estimates = {}
         self.grasps.clear()
         self._last_gripper, self._closing = -1.0, -1
+        self._last_attached = self._last_support = None
         self._collided = False
         self._models = None
         self.planner.reseed(seed)  # the attempt's plans depend on (reset seed, plan index) only
@@ -188,10 +191,16 @@ class SimGenerationEnv:
     def plan_and_execute(self, target: Pose, mode: str, attached: str | None):
         skill_object = self._next_object
         att = self._planning_scene(skill_object, attached if mode == "transfer" else None)
+        # Transit after a place: the hand may still touch what it just released (retreat only).
+        released = self._last_attached if mode == "transit" else None
+        released_support = self._last_support if mode == "transit" else None
         res = self.planner.plan(self.world.joint_positions(), target, Mode(mode), attached=att,
-                                manipulated=skill_object if mode == "transit" else None,
+                                manipulated=skill_object if mode == "transit" else None, released=released,
+                                released_support=released_support,
                                 start_support="table", goal_support=skill_object,
                                 timeout=self.cfg.plan_timeout)
+        self._last_attached = attached if mode == "transfer" else None
+        self._last_support = skill_object if mode == "transfer" else None
         self.last_plan = res
         if res.status is not PlanStatus.SUCCESS:
             return res.status.name, []

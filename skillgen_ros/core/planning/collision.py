@@ -81,10 +81,17 @@ class AttachedObject:
 
 @dataclass(frozen=True)
 class AllowedContacts:
-    """Contacts tolerated in retreat/approach: hand <-> `hand_object`, attached <-> `support`."""
+    """Contacts tolerated in retreat/approach: hand <-> `hand_object`, attached <-> `support`.
 
-    hand_object: str | None = None
+    hand_object may name several boxes (a tuple), e.g. a nut just released onto a peg and the peg:
+    the paper ignores hand/object and object/environment contacts in these short phases."""
+
+    hand_object: str | tuple[str, ...] | None = None
     support: str | None = None
+
+    def hand_names(self) -> tuple[str, ...]:
+        h = self.hand_object
+        return () if h is None else (h,) if isinstance(h, str) else tuple(h)
 
 
 NO_CONTACTS = AllowedContacts()
@@ -190,14 +197,21 @@ class CollisionModel:
         self._trees = {}
         return len(P)
 
-    def _tree(self, skip_box: str | None):
-        """KD-tree of the cloud, without the points inside box `skip_box` (padded 2 cm)."""
+    def _tree(self, skip_box):
+        """KD-tree of the cloud, without the points inside the box(es) named `skip_box` (a name or a
+        tuple of names; padded 2 cm)."""
         if skip_box not in self._trees:
             P = self.cloud
-            if skip_box is not None and len(P):
-                box = next((b for b in self.boxes if b.name == skip_box), None)
-                # unknown geometry: the allowed contact cannot be localised, so ignore the cloud
-                P = P[~box.contains(P, pad=0.02)] if box is not None else P[:0]
+            names = () if skip_box is None else (skip_box,) if isinstance(skip_box, str) else tuple(skip_box)
+            for name in names:
+                if not len(P):
+                    break
+                boxes = [b for b in self.boxes if b.name == name]
+                if not boxes:  # unknown geometry: the allowed contact cannot be localised, so ignore the cloud
+                    P = P[:0]
+                    break
+                for box in boxes:
+                    P = P[~box.contains(P, pad=0.02)]
             self._trees[skip_box] = cKDTree(P) if len(P) else None
         return self._trees[skip_box]
 
@@ -238,7 +252,7 @@ class CollisionModel:
         for j, b in enumerate(boxes):
             if attached is not None and b.name == attached.name:
                 skip[:, j] = True  # the held object is not an obstacle
-            if allow.hand_object is not None and b.name == allow.hand_object:
+            if b.name in allow.hand_names():
                 skip[group == HAND, j] = True
                 skip[group == ATTACHED, j] = True
             if allow.support is not None and b.name == allow.support:

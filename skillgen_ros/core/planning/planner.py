@@ -115,11 +115,13 @@ class MotionPlanner:
     def plan(self, start_q, target: Pose, mode: Mode = Mode.TRANSIT,
              attached: AttachedObject | None = None, manipulated: str | None = None,
              released: str | None = None, start_support: str | None = "table", goal_support: str | None = "table",
-             timeout: float = 5.0, retreat: bool = True, approach: bool = True) -> PlanResult:
+             timeout: float = 5.0, retreat: bool = True, approach: bool = True,
+             released_support: str | None = None) -> PlanResult:
         """Plan from `start_q` to the EE pose `target`. See the module docstring.
 
         manipulated: object the hand may touch on the approach (transit: about to be grasped);
         released: object the hand may touch on the retreat (just put down; default manipulated).
+        released_support: what `released` was put on (a peg, a bin); the hand may touch it on the retreat.
         start_support/goal_support: what the held object may touch when lifted from / put down on
         (a box name or "table"), transfer only.
         """
@@ -138,7 +140,8 @@ class MotionPlanner:
             return PlanResult(PlanStatus.INVALID_REQUEST, message=str(e), timings=timings)
         if mode is Mode.TRANSIT:
             attached = None
-            allow_start = AllowedContacts(hand_object=released or manipulated)
+            start_objects = tuple(x for x in (released or manipulated, released_support) if x)
+            allow_start = AllowedContacts(hand_object=start_objects or None)
             allow_goal = AllowedContacts(hand_object=manipulated)
         else:
             allow_start = AllowedContacts(hand_object=start_support, support=start_support)

@@ -40,7 +40,7 @@ class DatagenNode(Node):
         super().__init__("datagen")
         self.declare_parameter("demos_dir", "bags")
         self.declare_parameter("output_root", "out")
-        self.declare_parameter("collision_source", "point_cloud")
+        self.declare_parameter("collision_source", "scene")
         self.declare_parameter("action_noise", 0.05)
         for k, v in TIMEOUTS.items():
             self.declare_parameter(f"timeout_{k}", v)

@@ -138,6 +138,8 @@ class RosGraphEnv:
     # -- GenerationEnv
     def reset(self, task: str, variant: str, seed: int):
         req = ResetScene.Request(task=task, variant=variant, seed=int(seed))
+        with self._lock:  # the driver publishes the reset state before it answers: catch that one
+            self._ee = None
         resp = self._call(self.reset_cli, req, self.t["reset"], "reset_scene", "TIMEOUT")
         if not resp.success:
             raise SkillGenError(f"reset_scene: {resp.message}", reason=resp.reason_code or "RESET_FAILED")
@@ -146,8 +148,6 @@ class RosGraphEnv:
         self.task_pub.publish(String(data=f"{task}/{variant}"))
         self._estimates = {}
         self.grasps.clear()
-        with self._lock:
-            self._ee = None
         if not self.wait_for_state(self.t["state"]):
             raise GraphCallError("no ee_pose from the driver after reset", reason="TIMEOUT")
         return resp

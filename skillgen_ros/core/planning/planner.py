@@ -39,6 +39,11 @@ from .rrt import JointSpaceRRT, RRTStatus
 from .timing import JointTrajectory, time_parameterize
 
 
+# A measured start may sit slightly past a joint limit (tracking error, encoder noise); within this
+# tolerance it is clipped onto the limit instead of rejected.
+START_LIMIT_TOL = 0.05  # rad
+
+
 class PlanStatus(enum.IntEnum):
     """Values match skillgen_interfaces/srv/PlanToPose."""
 
@@ -157,7 +162,7 @@ class MotionPlanner:
         def edge_free(a, b, allow=AllowedContacts()):
             return self.cm.check_motion(a, b, attached, allow)
 
-        if not self.kin.within_limits(q0, tol=1e-6):
+        if not self.kin.within_limits(q0, tol=START_LIMIT_TOL):
             return fail(PlanStatus.INVALID_REQUEST, "start configuration outside joint limits")
         q0 = np.clip(q0, self.kin.lower, self.kin.upper)
         if collides(q0[None], allow_start)[0]:

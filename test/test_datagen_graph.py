@@ -123,3 +123,33 @@ def test_killed_perception_fails_attempts_with_a_reason_and_the_run_goes_on(grap
     assert failures.get("PERCEPTION_FAILED", 0) >= 1, failures
     summary = validate_dataset(res.dataset_path)
     assert summary.num_demos == res.successes
+
+
+def test_run_attempt_service_runs_one_attempt(graph, tmp_path):
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    from skillgen_interfaces.srv import RunAttempt
+
+    dom, _, _ = graph
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=dom)
+    try:
+        node = rclpy.create_node("run_attempt_client", context=ctx)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        cli = node.create_client(RunAttempt, "run_attempt")
+        assert cli.wait_for_service(timeout_sec=30)
+        bad = cli.call_async(RunAttempt.Request(task="Square", variant="D0", method="nope", index=0,
+                                                output_dir=str(tmp_path / "bad")))
+        ex.spin_until_future_complete(bad, timeout_sec=30)
+        assert not bad.result().accepted and bad.result().reason == "UNKNOWN_METHOD"
+        fut = cli.call_async(RunAttempt.Request(task="Square", variant="D0", method="skillgen", seed=0, index=2,
+                                                output_dir=str(tmp_path / "one")))
+        ex.spin_until_future_complete(fut, timeout_sec=300)
+        r = fut.result()
+        assert r.accepted and r.seconds > 0 and (r.success or r.reason != "OK"), r
+        assert (tmp_path / "one" / "demo.hdf5").exists()
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)

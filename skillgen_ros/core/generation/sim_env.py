@@ -67,6 +67,21 @@ def object_boxes(obj: ObjectSpec, pose: Pose) -> list[Box]:
     return out
 
 
+def attached_from_parts(obj: ObjectSpec, T_ee_obj: np.ndarray, spacing: float = 0.02) -> AttachedObject:
+    """A held object as spheres filling each primitive part (a nut's ring and handle, not its
+    bounding box, so the hole and the space around the handle stay free for planning)."""
+    if not obj.parts:
+        return AttachedObject.from_box(obj.id, obj.half_extents, T_ee_obj)
+    spheres = []
+    for part in obj.parts:
+        h = np.asarray(part.size if part.kind == "box" else (part.size[0], part.size[0], part.size[1]), float)
+        T_part = np.eye(4)
+        T_part[:3, :3] = Pose(part.position, part.quaternion).rotation.as_matrix()
+        T_part[:3, 3] = part.position
+        spheres.append(AttachedObject.from_box(obj.id, h, np.asarray(T_ee_obj) @ T_part, spacing).spheres)
+    return AttachedObject(obj.id, np.vstack(spheres))
+
+
 class SimGenerationEnv:
     """GenerationEnv (see attempt.GenerationEnv) over one in-process SimWorld."""
 
@@ -186,7 +201,7 @@ class SimGenerationEnv:
             if attached not in poses:
                 return None
             T_ee_obj = np.linalg.inv(self.world.ee_pose().matrix()) @ poses[attached].matrix()
-        return AttachedObject.from_box(attached, obj.half_extents, T_ee_obj)
+        return attached_from_parts(obj, T_ee_obj)
 
     def plan_and_execute(self, target: Pose, mode: str, attached: str | None):
         skill_object = self._next_object

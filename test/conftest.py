@@ -92,3 +92,24 @@ def wait_for(predicate, timeout: float = 10.0, period: float = 0.05) -> bool:
             return True
         time.sleep(period)
     return bool(predicate())
+
+
+@pytest.fixture
+def ros_node(ros_domain, request):
+    """An rclpy node in this process, on the test's domain, spun in a background thread."""
+    import threading
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=ros_domain)
+    node = rclpy.create_node(f"{request.module.__name__.split('.')[-1]}_node", context=ctx)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    thread = threading.Thread(target=ex.spin, daemon=True)
+    thread.start()
+    yield node
+    ex.shutdown()
+    node.destroy_node()
+    rclpy.shutdown(context=ctx)

@@ -5,15 +5,11 @@ this test process.
 """
 from __future__ import annotations
 
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import open3d as o3d
-import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import PointCloud2
@@ -34,19 +30,6 @@ EYE = np.array([1.35, 0.0, 0.70])
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
-@pytest.fixture
-def ros_node(ros_domain):
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=ros_domain)
-    node = rclpy.create_node("perception_test", context=ctx)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
-    thread = threading.Thread(target=ex.spin, daemon=True)
-    thread.start()
-    yield node
-    ex.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=ctx)
 
 
 def square_scene(seed=0):

@@ -5,14 +5,11 @@ against them. Tolerances allow for a shared 2-core machine.
 """
 from __future__ import annotations
 
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
@@ -27,19 +24,6 @@ PARAMS = str(REPO / "params" / "player.yaml")
 N, PERIOD_NS, T0 = 40, 25_000_000, 1_700_000_000_000_000_000
 
 
-@pytest.fixture
-def ros_node(ros_domain):
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=ros_domain)
-    node = rclpy.create_node("player_test", context=ctx)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
-    thread = threading.Thread(target=ex.spin, daemon=True)
-    thread.start()
-    yield node
-    ex.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=ctx)
 
 
 @pytest.fixture

@@ -5,15 +5,11 @@ The recorder runs as its own process (start_node); the publishers live in this t
 from __future__ import annotations
 
 import signal
-import threading
 import re
 import time
 from pathlib import Path
 
-import pytest
-import rclpy
 from mcap.reader import make_reader
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from rclpy.serialization import serialize_message
 from rosbags.highlevel import AnyReader
@@ -29,20 +25,6 @@ REPO = Path(__file__).resolve().parents[1]
 PARAMS = str(REPO / "params" / "recorder.yaml")
 
 
-@pytest.fixture
-def ros_node(ros_domain):
-    """An rclpy node in this process, on the test's domain, spun in a background thread."""
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=ros_domain)
-    node = rclpy.create_node("recorder_test", context=ctx)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
-    thread = threading.Thread(target=ex.spin, daemon=True)
-    thread.start()
-    yield node
-    ex.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=ctx)
 
 
 def _publish_both(node, n: int, period: float = 0.004, recorders: int = 1) -> list[tuple[str, bytes]]:

@@ -80,8 +80,8 @@ def write_demo_bag(path, rollout: DemoRollout, annotation: Annotation | None = N
     w = BagWriter(path, WriterOptions(compression=Compression.parse(compression), chunk_size=4 << 20,
                                       max_chunk_age_s=1e9, metadata_interval_s=1e9))
     try:
-        for rel, typ in SOURCE_TOPICS.items():
-            if rel not in skip_topics:
+        for rel, typ in SOURCE_TOPICS.items():  # the demonstrator's poses are the sim's, not perception's
+            if rel not in skip_topics and rel != "perception/object_poses":
                 w.add_topic(TopicSpec("/" + rel, typ, (_RELIABLE,)))
         for step in rollout.steps:
             ns = T0_NS + int(round(step.time * 1e9))

@@ -113,7 +113,10 @@ def subset_paths(task_dir, subset: str = "all") -> list[Path]:
 
 
 # ---------------------------------------------------------------------------------------- record
-SOURCE_TOPICS = ["joint_states", "ee_pose", "gripper_state", "osc_target", "sim/ground_truth/object_poses"]
+# A teleop session on the sim records the sim's ground-truth object poses; on a real robot remap
+# or record perception/object_poses instead (the loader prefers it when present).
+SOURCE_TOPICS = ["joint_states", "ee_pose", "gripper_state", "osc_target", "sim/ground_truth/object_poses",
+                 "perception/object_poses"]
 
 
 def _exe(name: str) -> str:

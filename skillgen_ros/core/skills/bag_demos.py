@@ -38,8 +38,12 @@ SOURCE_TOPICS = {
     "gripper_state": "skillgen_interfaces/msg/GripperState",
     "osc_target": "skillgen_interfaces/msg/OscTarget",
     "sim/ground_truth/object_poses": "skillgen_interfaces/msg/ObjectPoseArray",
+    "perception/object_poses": "skillgen_interfaces/msg/ObjectPoseArray",
 }
-REQUIRED_TOPICS = ("ee_pose", "osc_target", "sim/ground_truth/object_poses")
+REQUIRED_TOPICS = ("ee_pose", "osc_target")
+# Where a demo's object poses come from, in order of preference: what perception estimated during a
+# (real-robot) recording, else the sim's ground truth (the scripted demonstrator's bags). One is required.
+OBJECT_POSE_TOPICS = ("perception/object_poses", "sim/ground_truth/object_poses")
 
 
 @dataclass(frozen=True)
@@ -158,12 +162,16 @@ def read_demo_arrays(path, reader: BagReader | None = None) -> DemoArrays:
 
     obj_t: dict[str, list[float]] = {}
     obj_p: dict[str, list[list[float]]] = {}
-    for t, m in _decode_all(reader, topics["sim/ground_truth/object_poses"]):
-        for o in m.objects:
-            obj_t.setdefault(o.id, []).append(t)
-            obj_p.setdefault(o.id, []).append(_pose7(o.pose))
+    for pose_topic in (t for t in OBJECT_POSE_TOPICS if t in topics):
+        for t, m in _decode_all(reader, topics[pose_topic]):
+            for o in m.objects:
+                obj_t.setdefault(o.id, []).append(t)
+                obj_p.setdefault(o.id, []).append(_pose7(o.pose))
+        if obj_t:
+            break
     if not obj_t:
-        raise BagError(f"{src}: topic 'sim/ground_truth/object_poses' has no object poses", "MISSING_TOPIC")
+        raise BagError(f"{src}: no object poses: record one of {list(OBJECT_POSE_TOPICS)} with messages; "
+                       f"the bag has {sorted(reader.topics)}", "MISSING_TOPIC")
     objs = {k: sample_and_hold(t_cmd, obj_t[k], np.array(obj_p[k])) for k in obj_t}
 
     joints = None

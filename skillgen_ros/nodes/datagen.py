@@ -105,6 +105,13 @@ class DatagenNode(Node):
             self.get_logger().error(f"generate rejected: {e}")
             goal_handle.abort()
             return res
+        missing = self.env.wait_ready(float(self.get_parameter("timeout_state").value) * 3)
+        if missing:
+            res.accepted, res.reason = False, "GRAPH_NOT_READY"
+            res.message = f"not available: {', '.join(missing)}"
+            self.get_logger().error(f"generate rejected: {res.message}")
+            goal_handle.abort()
+            return res
         res.accepted = True
         bag = self._start_bag(req) if g.record_bag else ""
 

@@ -162,11 +162,41 @@ class RosGraphEnv:
             objects[held] = self.grasps.pose_now(held, ee_pose.matrix())
         return Observation(ee_pose=ee_pose, gripper=f, joint_positions=q, object_poses=objects)
 
+    def wait_ready(self, timeout: float) -> list[str]:
+        """Wait for every server an attempt needs; returns the names still missing after `timeout`."""
+        end = time.monotonic() + timeout
+        servers = [(self.reset_cli, "reset_scene"), (self.success_cli, "task_success"),
+                   (self.estimate_cli, "estimate_poses"), (self.plan_cli, "plan_to_pose")]
+        missing = []
+        for cli, name in servers:
+            if not cli.wait_for_service(timeout_sec=max(0.1, end - time.monotonic())):
+                missing.append(name)
+        if not self.replay_ac.wait_for_server(timeout_sec=max(0.1, end - time.monotonic())):
+            missing.append("replay_skill")
+        return missing
+
+    def _hold_period(self) -> None:
+        """One control period holding the current pose and gripper (lockstep: makes the driver
+        publish again, cameras included every few periods)."""
+        obs = self.observe()
+        g = 1.0 if self.grasps.holding() else -1.0
+        self.step(Pose.from_array(obs.ee_pose), g)
+
     def estimate_poses(self) -> dict[str, Pose]:
+        for _ in range(12):  # no cloud yet (perception joined after the last camera frame): hold and retry
+            resp = self._estimate_once()
+            if resp.status != EstimatePoses.Response.NO_DATA:
+                break
+            self._hold_period()
+        return self._take_estimates(resp)
+
+    def _estimate_once(self):
+        held = self.grasps.holding()  # in the hand: occluded, tracked instead
+        req = EstimatePoses.Request(object_ids=[o.id for o in self.scene_objects if o.id not in (held, "obstacle")])
+        return self._call(self.estimate_cli, req, self.t["perception"], "estimate_poses", "PERCEPTION_FAILED")
+
+    def _take_estimates(self, resp) -> dict[str, Pose]:
         held = self.grasps.holding()
-        required = [o.id for o in self.scene_objects if not o.is_fixture or o.id != "obstacle"]
-        req = EstimatePoses.Request(object_ids=[i for i in required if i != held and i != "obstacle"])
-        resp = self._call(self.estimate_cli, req, self.t["perception"], "estimate_poses", "PERCEPTION_FAILED")
         if resp.status != EstimatePoses.Response.OK and not resp.poses:
             raise SkillGenError(f"estimate_poses: {resp.status_name}: {resp.message}", reason="PERCEPTION_FAILED")
         for p in resp.poses:

@@ -81,12 +81,7 @@ class _Watcher:
 
 @pytest.fixture(params=["mock_driver", "sim_driver"])
 def driver(request, start_node):
-    import importlib
-    import inspect
-
     exe = request.param
-    if "not_implemented(" in inspect.getsource(importlib.import_module(f"skillgen_ros.nodes.{exe}")):
-        pytest.skip(f"{exe} not implemented yet")
     return start_node(exe, "--ros-args", "--params-file", str(REPO / f"params/{exe}.yaml"),
                       "-p", "initial_task:=Square", "-p", "publish_points:=false")
 

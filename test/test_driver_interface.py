@@ -80,9 +80,14 @@ class Client:
 
     def call(self, cli, req, timeout=20.0):
         assert cli.wait_for_service(timeout_sec=timeout)
-        fut = cli.call_async(req)
-        assert self.spin_until(fut.done, timeout)
-        return fut.result()
+        # The first response can be lost while the server has not yet matched our response reader
+        # (wait_for_service only sees the request side): resend the (idempotent) request once.
+        for _ in range(2):
+            fut = cli.call_async(req)
+            if self.spin_until(fut.done, timeout / 2):
+                return fut.result()
+            cli.remove_pending_request(fut)
+        raise AssertionError(f"no answer from {cli.srv_name} in {timeout} s")
 
     def reset(self, task, variant, seed):
         return self.call(self.reset_cli, ResetScene.Request(task=task, variant=variant, seed=seed))

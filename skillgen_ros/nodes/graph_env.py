@@ -113,18 +113,23 @@ class RosGraphEnv:
         return frames
 
     # -- plumbing
-    def _call(self, client, request, timeout: float, what: str, reason: str):
+    def _call(self, client, request, timeout: float, what: str, reason: str, idempotent: bool = True):
+        """Call a service with a timeout. The first response on a fresh connection can be lost (the
+        server may not have matched our response reader yet), so idempotent requests are resent
+        once after a short wait."""
         if not client.wait_for_service(timeout_sec=min(timeout, 5.0)):
             raise GraphCallError(f"{what}: service {client.srv_name} is not available", reason=reason)
-        fut = client.call_async(request)
-        done = threading.Event()
-        fut.add_done_callback(lambda _f: done.set())
-        if not done.wait(timeout):
+        waits = [min(5.0, timeout / 2), timeout - min(5.0, timeout / 2)] if idempotent else [timeout]
+        for wait in waits:
+            fut = client.call_async(request)
+            done = threading.Event()
+            fut.add_done_callback(lambda _f: done.set())
+            if done.wait(wait):
+                if fut.exception() is not None:
+                    raise GraphCallError(f"{what}: {fut.exception()}", reason=reason)
+                return fut.result()
             client.remove_pending_request(fut)
-            raise GraphCallError(f"{what}: no answer from {client.srv_name} within {timeout:.1f} s", reason=reason)
-        if fut.exception() is not None:
-            raise GraphCallError(f"{what}: {fut.exception()}", reason=reason)
-        return fut.result()
+        raise GraphCallError(f"{what}: no answer from {client.srv_name} within {timeout:.1f} s", reason=reason)
 
     def wait_for_state(self, timeout: float) -> bool:
         end = time.monotonic() + timeout
@@ -242,7 +247,8 @@ class RosGraphEnv:
         req.start_positions = [float(v) for v in self.current_q()]
         req.objects = self._scene_for_planner()
         req.manipulated_object = self._skill_object or ""
-        resp = self._call(self.plan_cli, req, self.t["plan"] + self.t["execute"], "plan_to_pose", "PLAN_FAILED")
+        resp = self._call(self.plan_cli, req, self.t["plan"] + self.t["execute"], "plan_to_pose", "PLAN_FAILED",
+                          idempotent=False)  # it moves the robot
         status = resp.status_name or str(resp.status)
         if resp.status != PlanToPose.Response.SUCCESS:
             return status, []

@@ -48,7 +48,7 @@ def test_ik_draws_are_per_call_after_reseed(world):
     p2.reseed(7)
     draws = []
     for p in (p1, p2):
-        p._call_rng()
+        p._reseed_ik_for_call()
         draws.append(p.ik.rng.integers(1 << 30, size=4))
     np.testing.assert_array_equal(draws[0], draws[1])
 

@@ -178,11 +178,7 @@ class DatagenNode(Node):
         if not self.rec_start.wait_for_service(timeout_sec=5.0):
             self.get_logger().warning("recorder/start not available; not recording this run")
             return ""
-        ev = threading.Event()
-        fut = self.rec_start.call_async(Recorder.Request(output=path))
-        fut.add_done_callback(lambda _f: ev.set())
-        ev.wait(10.0)
-        r = fut.result() if fut.done() else None
+        r = self._recorder_call(self.rec_start, 10.0, Recorder.Request(output=path))
         if r is None or not r.success:
             self.get_logger().warning(f"recorder did not start: {getattr(r, 'message', 'no answer')}")
             return ""
@@ -191,9 +187,9 @@ class DatagenNode(Node):
     def _stop_bag(self) -> None:
         self._recorder_call(self.rec_stop, 15.0)
 
-    def _recorder_call(self, client, timeout: float = 5.0):
+    def _recorder_call(self, client, timeout: float = 5.0, request: Recorder.Request | None = None):
         ev = threading.Event()
-        fut = client.call_async(Recorder.Request())
+        fut = client.call_async(request or Recorder.Request())
         fut.add_done_callback(lambda _f: ev.set())
         ev.wait(timeout)
         return fut.result() if fut.done() else None

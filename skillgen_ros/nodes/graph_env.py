@@ -122,9 +122,7 @@ class RosGraphEnv:
         waits = [min(5.0, timeout / 2), timeout - min(5.0, timeout / 2)] if idempotent else [timeout]
         for wait in waits:
             fut = client.call_async(request)
-            done = threading.Event()
-            fut.add_done_callback(lambda _f: done.set())
-            if done.wait(wait):
+            if _wait_future(fut, wait):
                 if fut.exception() is not None:
                     raise GraphCallError(f"{what}: {fut.exception()}", reason=reason)
                 return fut.result()
@@ -298,17 +296,13 @@ class RosGraphEnv:
 
     def _wait_action(self, send_future, timeout: float):
         end = time.monotonic() + timeout
-        ev = threading.Event()
-        send_future.add_done_callback(lambda _f: ev.set())
-        if not ev.wait(max(0.0, end - time.monotonic())):
+        if not _wait_future(send_future, timeout):
             raise GraphCallError("replay_skill goal was not answered", reason="SKILL_FAILED")
         handle = send_future.result()
         if not handle.accepted:
             raise GraphCallError("replay_skill goal rejected (busy?)", reason="SKILL_FAILED")
         rf = handle.get_result_async()
-        ev2 = threading.Event()
-        rf.add_done_callback(lambda _f: ev2.set())
-        if not ev2.wait(max(0.0, end - time.monotonic())):
+        if not _wait_future(rf, max(0.0, end - time.monotonic())):
             handle.cancel_goal_async()
             raise GraphCallError(f"replay_skill did not finish within {timeout:.0f} s", reason="TIMEOUT")
         return rf.result()
@@ -334,3 +328,10 @@ class RosGraphEnv:
 
     def collided(self) -> bool:
         return False  # the planner's EXECUTION_FAILED status carries execution problems
+
+
+def _wait_future(fut, timeout: float) -> bool:
+    """Block this (non-executor) thread until an rclpy future is done; False on timeout."""
+    done = threading.Event()
+    fut.add_done_callback(lambda _f: done.set())
+    return done.wait(timeout)

@@ -77,10 +77,7 @@ def _plots(out_dir: str, runs: Sequence[RunSummary]) -> dict[str, str]:
     ax.set_ylabel("success rate (%)")
     ax.set_ylim(0, 100)
     ax.set_title("Generation success (Wilson 95% CI)")
-    fig.tight_layout()
-    paths["success"] = os.path.join(out_dir, "success_rate.png")
-    fig.savefig(paths["success"], dpi=100)
-    plt.close(fig)
+    paths["success"] = _save(fig, out_dir, "success_rate.png")
 
     reasons = sorted({k for r in runs for k in r.failures})
     fig, ax = plt.subplots(figsize=(max(4, 1.2 * len(runs) + 2), 3.5))
@@ -94,10 +91,7 @@ def _plots(out_dir: str, runs: Sequence[RunSummary]) -> dict[str, str]:
     ax.set_title("Failure breakdown")
     if reasons:
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    paths["failures"] = os.path.join(out_dir, "failures.png")
-    fig.savefig(paths["failures"], dpi=100)
-    plt.close(fig)
+    paths["failures"] = _save(fig, out_dir, "failures.png")
 
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.5))
     for r in runs:
@@ -116,11 +110,18 @@ def _plots(out_dir: str, runs: Sequence[RunSummary]) -> dict[str, str]:
     a2.set_title("Time per stage")
     if runs:
         a2.legend(fontsize=7)
-    fig.tight_layout()
-    paths["timing"] = os.path.join(out_dir, "timing.png")
-    fig.savefig(paths["timing"], dpi=100)
-    plt.close(fig)
+    paths["timing"] = _save(fig, out_dir, "timing.png")
     return paths
+
+
+def _save(fig, out_dir: str, name: str) -> str:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    path = os.path.join(out_dir, name)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
 
 
 def _pct(x: float | None) -> str:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
-from ..errors import InvalidInputError, SkillGenError, UnknownTaskError
+from ..errors import InvalidInputError, UnknownTaskError
 from ..skills.augmentation import AugmentationConfig
 from ..skills.segment import SourceDemo
 from .attempt import METHODS, AttemptResult, GenerationConfig, GenerationEnv, run_attempt
@@ -146,10 +146,7 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
             capture = hasattr(env, "start_capture") and len(clips) < req.video_attempts
             if capture:
                 env.start_capture()
-            try:
-                r = run_attempt(env, demos, task, req.method, index, req.seed, cfg)
-            except SkillGenError:
-                raise
+            r = run_attempt(env, demos, task, req.method, index, req.seed, cfg)
             if capture:
                 clips.append((f"attempt {index}", r.success, env.stop_capture()))
             sink.add(r)

@@ -51,34 +51,29 @@ class SimEnvConfig:
                                     reason="INVALID_PARAMETER")
 
 
-def object_boxes(obj: ObjectSpec, pose: Pose) -> list[Box]:
-    """Planner boxes for an object: one per primitive part (cylinders by their bounding box)."""
-    T = pose.matrix()
-    parts = obj.parts or ()
-    if not parts:
-        return [Box(obj.id, T, np.asarray(obj.half_extents))]
+def part_boxes(obj: ObjectSpec) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(T_object_part, half extents) per primitive part, cylinders by their bounding box; the
+    object's bounding box when it has no parts."""
+    if not obj.parts:
+        return [(np.eye(4), np.asarray(obj.half_extents, float))]
     out = []
-    for k, part in enumerate(parts):
-        Tp = np.eye(4)
-        Tp[:3, :3] = Pose(part.position, part.quaternion).rotation.as_matrix()
-        Tp[:3, 3] = part.position
+    for part in obj.parts:
         h = part.size if part.kind == "box" else (part.size[0], part.size[0], part.size[1])
-        out.append(Box(obj.id, T @ Tp, np.asarray(h, float)))
+        out.append((Pose(part.position, part.quaternion).matrix(), np.asarray(h, float)))
     return out
+
+
+def object_boxes(obj: ObjectSpec, pose: Pose) -> list[Box]:
+    """Planner boxes for an object at `pose`: one per primitive part."""
+    T = pose.matrix()
+    return [Box(obj.id, T @ Tp, h) for Tp, h in part_boxes(obj)]
 
 
 def attached_from_parts(obj: ObjectSpec, T_ee_obj: np.ndarray, spacing: float = 0.02) -> AttachedObject:
     """A held object as spheres filling each primitive part (a nut's ring and handle, not its
     bounding box, so the hole and the space around the handle stay free for planning)."""
-    if not obj.parts:
-        return AttachedObject.from_box(obj.id, obj.half_extents, T_ee_obj)
-    spheres = []
-    for part in obj.parts:
-        h = np.asarray(part.size if part.kind == "box" else (part.size[0], part.size[0], part.size[1]), float)
-        T_part = np.eye(4)
-        T_part[:3, :3] = Pose(part.position, part.quaternion).rotation.as_matrix()
-        T_part[:3, 3] = part.position
-        spheres.append(AttachedObject.from_box(obj.id, h, np.asarray(T_ee_obj) @ T_part, spacing).spheres)
+    spheres = [AttachedObject.from_box(obj.id, h, np.asarray(T_ee_obj) @ Tp, spacing).spheres
+               for Tp, h in part_boxes(obj)]
     return AttachedObject(obj.id, np.vstack(spheres))
 
 

@@ -107,7 +107,7 @@ class MotionPlanner:
             raise InvalidInputError(f"planner seed must be an int >= 0, got {seed!r}")
         self.seed, self._calls = int(seed), 0
 
-    def _call_rng(self) -> None:
+    def _reseed_ik_for_call(self) -> None:
         """Per-call IK streams (the IK's rng and numba's restart RNG); without a seed the IK keeps
         its own stream."""
         if self.seed is None:
@@ -132,7 +132,7 @@ class MotionPlanner:
         """
         t_all = time.perf_counter()
         timings: dict[str, float] = {}
-        self._call_rng()  # every call takes its index, whatever its outcome
+        self._reseed_ik_for_call()  # every call takes its index, whatever its outcome
         try:
             q0 = self.kin._check(start_q)
             target = validate_pose(target.position, target.quaternion, "target")

@@ -42,6 +42,7 @@ from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
 from skillgen_ros.core.sim.camera import CameraConfig
 from skillgen_ros.core.sim.commands import TrajectoryCode, TrajectoryError, validate_gripper, validate_osc_target
 from skillgen_ros.nodes import convert
+from skillgen_ros.nodes.feedback import FeedbackThrottle
 
 PARAMS = {  # name: (default, description)
     "timing_mode": ("lockstep", "realtime (wall-clock timer) or lockstep (one period per osc_target / timeout)"),
@@ -58,6 +59,8 @@ PARAMS = {  # name: (default, description)
     "depth_noise_quadratic": (0.0, "depth noise quadratic coefficient (1/m)"),
     "depth_dropout": (0.0, "probability a depth pixel is missing"),
     "publish_points": (True, "publish camera/<name>/points (PointCloud2, world frame)"),
+    "feedback_hz": (20.0, "action feedback at most this often (wall clock; joint_trajectory_controller's "
+                          "action_monitor_rate): every period in realtime, not a flood in lockstep"),
     "initial_task": ("", "task to reset to at startup ('' = empty scene until reset_scene)"),
     "initial_variant": ("D0", "variant for initial_task"),
     "initial_seed": (0, "seed for initial_task"),
@@ -77,6 +80,11 @@ class DriverNode(Node):
         self.mode = self.param("timing_mode")
         if self.mode not in ("realtime", "lockstep"):
             raise ParameterError(f"timing_mode must be realtime or lockstep, got {self.mode!r}")
+        # Lockstep: one thread. Every callback is short or runs the world at full speed (an action
+        # in lockstep never sleeps), and the osc_target -> step -> publish round trip is the graph's
+        # hot path, which a thread-pool handoff per message slows by about a third.
+        # Real time: actions pace themselves with sleeps, so other callbacks need other threads.
+        self.executor_kind = "single" if self.mode == "lockstep" else "multi"
         self.hz = float(self.param("control_hz"))
         if not self.hz > 0:
             raise ParameterError("control_hz must be > 0")
@@ -134,7 +142,7 @@ class DriverNode(Node):
                 self._types = {o.id: o.type for o in scene.objects}
             except SkillGenError as e:
                 raise ParameterError(f"initial scene: {e}")
-        self._publish(cameras=bool(self.camera_every))
+        self._publish(cameras=bool(self.camera_every), force=True)
         self.get_logger().info(f"{name} up: {self.mode}, {self.hz:g} Hz, cameras {self.camera_names}")
 
     def param(self, name: str):
@@ -189,24 +197,34 @@ class DriverNode(Node):
                 time.sleep(delay)
 
     # ----------------------------------------------------------------- publishing
-    def _publish(self, cameras: bool) -> None:
+    def _publish(self, cameras: bool, force: bool = False) -> None:
+        """Publish this period's state. A topic nobody subscribes to is skipped (building and
+        serializing the message is most of a publish in rclpy, and no reader can tell the
+        difference: none of these is latched but ground truth, which `force`, e.g. on a reset,
+        always sends so the latched value is the current scene). A camera renders only when one
+        of its topics has a reader."""
         w, stamp = self.world, self._stamp()
         header = Header(frame_id=self.frame, stamp=stamp)
-        if self.pub_clock is not None:
+        if self.pub_clock is not None and (force or self.pub_clock.get_subscription_count()):
             self.pub_clock.publish(Clock(clock=stamp))
-        q = np.concatenate([w.joint_positions(), w.finger_positions()])
-        qd = np.concatenate([w.joint_velocities(), np.zeros(2)])
-        self.pub_js.publish(convert.joint_state(ARM_JOINTS + FINGER_JOINTS, q, qd, stamp=stamp))
-        self.pub_ee.publish(convert.pose_stamped(w.ee_pose(), self.frame, stamp))
-        self.pub_grip.publish(GripperState(header=header, width=float(w.gripper_width()),
-                                           command=float(w.gripper_command), grasping=bool(w.is_grasping())))
-        if w.scene is not None:
+        if force or self.pub_js.get_subscription_count():
+            q = np.concatenate([w.joint_positions(), w.finger_positions()])
+            qd = np.concatenate([w.joint_velocities(), np.zeros(2)])
+            self.pub_js.publish(convert.joint_state(ARM_JOINTS + FINGER_JOINTS, q, qd, stamp=stamp))
+        if force or self.pub_grip.get_subscription_count():
+            self.pub_grip.publish(GripperState(header=header, width=float(w.gripper_width()),
+                                               command=float(w.gripper_command), grasping=bool(w.is_grasping())))
+        # ee_pose last: a closed-loop client (skill_replay) takes it as "this period's state is out"
+        if force or self.pub_ee.get_subscription_count():
+            self.pub_ee.publish(convert.pose_stamped(w.ee_pose(), self.frame, stamp))
+        if w.scene is not None and (force or self.pub_gt.get_subscription_count()):
             self.pub_gt.publish(ObjectPoseArray(header=header, objects=[
                 ObjectPose(id=oid, type=self._types[oid], pose=convert.pose_to_msg(p), confidence=1.0)
                 for oid, p in w.object_poses().items()]))
         if cameras:
             for n in self.camera_names:
-                self._publish_camera(n, stamp)
+                if force or any(p.get_subscription_count() for p in self.cam_pubs[n].values()):
+                    self._publish_camera(n, stamp)
 
     def _publish_camera(self, name: str, stamp: Time) -> None:
         f = self.world.render(name)
@@ -235,7 +253,7 @@ class DriverNode(Node):
             with self.lock:
                 scene = self.world.reset(req.task, req.variant, int(req.seed))
                 self._types = {o.id: o.type for o in scene.objects}
-                self._publish(cameras=bool(self.camera_every))
+                self._publish(cameras=bool(self.camera_every), force=True)
         except SkillGenError as e:
             res.success, res.reason_code, res.message = False, e.reason, str(e)
             self._report(e)
@@ -280,6 +298,7 @@ class DriverNode(Node):
             result.error_code, result.error_string = int(TrajectoryCode.INVALID_GOAL), str(e)
             return result
         t0, k, fb = time.monotonic(), 0, ExecuteTrajectory.Feedback()
+        feedback = FeedbackThrottle(float(self.param("feedback_hz")))
         try:
             while True:
                 if handle.is_cancel_requested:
@@ -297,9 +316,10 @@ class DriverNode(Node):
                     result.error_code, result.error_string = int(TrajectoryCode.PATH_TOLERANCE_VIOLATED), str(e)
                     return result
                 progress, q_des, done = out["r"]
-                fb.progress, fb.desired_positions = float(progress), [float(v) for v in q_des]
-                fb.actual_positions = [float(v) for v in self.world.joint_positions()]
-                handle.publish_feedback(fb)
+                if feedback.due(done is not None):
+                    fb.progress, fb.desired_positions = float(progress), [float(v) for v in q_des]
+                    fb.actual_positions = [float(v) for v in self.world.joint_positions()]
+                    handle.publish_feedback(fb)
                 if done is not None:
                     result.error_code, result.error_string = int(done.code), done.message
                     handle.succeed() if done.code == TrajectoryCode.SUCCESSFUL else handle.abort()

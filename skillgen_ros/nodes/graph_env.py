@@ -3,8 +3,10 @@
 Algorithm 1 (core/generation/attempt.py) calls these methods; each maps to one interface:
 reset -> `reset_scene`, estimate_poses -> `estimate_poses`, plan_and_execute -> `plan_to_pose`
 (execute=true: the planner runs the trajectory on the driver), replay_skill -> the `replay_skill`
-action, task_success -> `task_success`. Observations come from `joint_states`, `ee_pose` and
-`gripper_state`; object poses in observations are the latest estimates (never ground truth).
+action, task_success -> `task_success`. Observations come from `joint_states` alone (arm and
+finger joints; the EE pose is FK through pinocchio, within 1e-8 m of the driver's `ee_pose`),
+read on demand (nodes/latest.py) so that the driver's hundreds of periods a second in lockstep do
+not wake this node; object poses in observations are the latest estimates (never ground truth).
 Motion-planner steps are recorded from the planned trajectory sampled at the control rate
 (commanded states, FK through pinocchio); skill steps are the measured states skill_replay saw.
 Every call has a timeout; a node that does not answer becomes a failure with a reason
@@ -16,7 +18,6 @@ import threading
 import time
 
 import numpy as np
-from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
@@ -25,14 +26,16 @@ from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import String
 
 from skillgen_interfaces.action import ReplaySkill
-from skillgen_interfaces.msg import GripperState, OscTarget, SceneObject
+from skillgen_interfaces.msg import OscTarget, SceneObject
 from skillgen_interfaces.srv import EstimatePoses, PlanToPose, ResetScene, TaskSuccess
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
 from skillgen_ros.core.generation.grasp import GraspTracker, grasp_step
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
+from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
 from skillgen_ros.nodes import convert
+from skillgen_ros.nodes.latest import LatestMessage
 
 
 class GraphCallError(SkillGenError):
@@ -56,17 +59,12 @@ class RosGraphEnv:
         self.plan_cli = node.create_client(PlanToPose, "plan_to_pose", callback_group=group)
         self.replay_ac = ActionClient(node, ReplaySkill, "replay_skill", callback_group=group)
         self._lock = threading.RLock()
-        self._cond = threading.Condition(self._lock)
-        self._ee_count = 0
         self.osc_pub = node.create_publisher(OscTarget, "osc_target", 10)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.task_pub = node.create_publisher(String, "perception/set_task", latched)
-        self._ee: PoseStamped | None = None
         self._q = np.zeros(7)
         self._fingers = np.zeros(2)
-        node.create_subscription(PoseStamped, "ee_pose", self._on_ee, 10, callback_group=group)
-        node.create_subscription(JointState, "joint_states", self._on_joints, 10, callback_group=group)
-        node.create_subscription(GripperState, "gripper_state", self._on_gripper, 10, callback_group=group)
+        self._joints = LatestMessage(node, JointState, "joint_states")
         node.create_subscription(Image, "camera/front/image", self._on_image, qos_profile_sensor_data,
                                  callback_group=group)
         self._frames: list | None = None
@@ -78,25 +76,17 @@ class RosGraphEnv:
         self.grasps = GraspTracker()
 
     # -- subscriptions
-    def _on_ee(self, m):
-        with self._cond:
-            self._ee = m
-            self._ee_count += 1
-            self._cond.notify_all()
-
-    def _on_joints(self, m):
-        names = list(m.name)
-        pos = dict(zip(names, m.position))
+    def _take_joints(self, m) -> bool:
+        if m is None:
+            return False
+        pos = dict(zip(m.name, m.position))
+        if not all(j in pos for j in ARM_JOINTS):
+            return False
         with self._lock:
-            if all(f"panda_joint{i}" in pos for i in range(1, 8)):
-                self._q = np.array([pos[f"panda_joint{i}"] for i in range(1, 8)])
-            if "panda_finger_joint1" in pos and "panda_finger_joint2" in pos:
-                self._fingers = np.array([pos["panda_finger_joint1"], pos["panda_finger_joint2"]])
-
-    def _on_gripper(self, m):
-        if not np.any(self._fingers):
-            with self._lock:
-                self._fingers = np.array([m.width / 2, m.width / 2])
+            self._q = np.array([pos[j] for j in ARM_JOINTS])
+            if all(j in pos for j in FINGER_JOINTS):
+                self._fingers = np.array([pos[j] for j in FINGER_JOINTS])
+        return True
 
     def _on_image(self, m: Image):
         frames = self._frames
@@ -129,20 +119,15 @@ class RosGraphEnv:
             client.remove_pending_request(fut)
         raise GraphCallError(f"{what}: no answer from {client.srv_name} within {timeout:.1f} s", reason=reason)
 
-    def wait_for_state(self, timeout: float) -> bool:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            with self._lock:
-                if self._ee is not None:
-                    return True
-            time.sleep(0.02)
-        return False
+    def wait_for_state(self, timeout: float, after: int = -1) -> bool:
+        """Take the driver's newest joint_states (the first after the `after`-th, if given)."""
+        m = self._joints.wait_newer(after, timeout) if after >= 0 else self._joints.latest(timeout)
+        return self._take_joints(m)
 
     # -- GenerationEnv
     def reset(self, task: str, variant: str, seed: int):
         req = ResetScene.Request(task=task, variant=variant, seed=int(seed))
-        with self._lock:  # the driver publishes the reset state before it answers: catch that one
-            self._ee = None
+        _, count = self._joints.snapshot()  # the driver publishes the reset state before it answers
         resp = self._call(self.reset_cli, req, self.t["reset"], "reset_scene", "TIMEOUT")
         if not resp.success:
             raise SkillGenError(f"reset_scene: {resp.message}", reason=resp.reason_code or "RESET_FAILED")
@@ -151,14 +136,15 @@ class RosGraphEnv:
         self.task_pub.publish(String(data=f"{task}/{variant}"))
         self._estimates = {}
         self.grasps.clear()
-        if not self.wait_for_state(self.t["state"]):
-            raise GraphCallError("no ee_pose from the driver after reset", reason="TIMEOUT")
+        if not self.wait_for_state(self.t["state"], after=count):
+            raise GraphCallError("no joint_states from the driver after reset", reason="TIMEOUT")
         return resp
 
     def observe(self) -> Observation:
+        self._take_joints(self._joints.latest())
         with self._lock:
-            ee, q, f = self._ee, self._q.copy(), self._fingers.copy()
-        ee_pose = convert.pose_from_msg(ee.pose)
+            q, f = self._q.copy(), self._fingers.copy()
+        ee_pose = Pose.from_matrix(self.kin.fk(q))
         objects = dict(self._estimates)
         held = self.grasps.holding()
         if held in objects:  # a held object moves with the hand (rigid attachment)
@@ -186,11 +172,16 @@ class RosGraphEnv:
         self.step(Pose.from_array(obs.ee_pose), g)
 
     def estimate_poses(self) -> dict[str, Pose]:
-        for _ in range(12):  # no cloud yet (perception joined after the last camera frame): hold and retry
+        # No cloud yet (perception's camera subscription matched after the last frame, e.g. right
+        # after start-up): hold the pose for a few periods, so the driver renders again, and retry.
+        end = time.monotonic() + self.t["perception"]
+        while True:
             resp = self._estimate_once()
-            if resp.status != EstimatePoses.Response.NO_DATA:
+            if resp.status != EstimatePoses.Response.NO_DATA or time.monotonic() > end:
                 break
-            self._hold_period()
+            for _ in range(3):
+                self._hold_period()
+            time.sleep(0.05)
         return self._take_estimates(resp)
 
     def _estimate_once(self):
@@ -211,6 +202,7 @@ class RosGraphEnv:
         return self.observe().ee_pose
 
     def current_q(self) -> np.ndarray:
+        self._take_joints(self._joints.latest())
         with self._lock:
             return self._q.copy()
 
@@ -308,18 +300,16 @@ class RosGraphEnv:
         return rf.result()
 
     def step(self, target: Pose, gripper: float) -> Observation:
-        """One OSC command (MimicGen's interpolation steps); waits for the driver's next ee_pose."""
-        with self._cond:
-            count = self._ee_count
+        """One OSC command (MimicGen's interpolation steps); waits for the driver's next joint_states."""
+        _, count = self._joints.snapshot()
         msg = OscTarget()
         msg.header.frame_id = "world"
         msg.header.stamp = self.node.get_clock().now().to_msg()
         msg.pose = convert.pose_to_msg(target)
         msg.gripper = float(gripper)
         self.osc_pub.publish(msg)
-        with self._cond:
-            if not self._cond.wait_for(lambda: self._ee_count > count, self.t["state"]):
-                raise GraphCallError("driver did not step after an osc_target", reason="TIMEOUT")
+        if not self.wait_for_state(self.t["state"], after=count):
+            raise GraphCallError("driver did not step after an osc_target", reason="TIMEOUT")
         return self.observe()
 
     def task_success(self) -> bool:

@@ -5,7 +5,10 @@ Service `estimate_poses` (EstimatePoses) runs core.perception.estimate_poses on 
 `perception/object_poses` (ObjectPoseArray), `perception/obstacles` (PointCloud2) and
 `perception/markers` (MarkerArray), all reliable + transient local. The camera position used by
 the visibility score comes from `camera/front/pose` (PoseStamped, world frame) when a driver
-publishes it, else from the `camera_position` parameter.
+publishes it, else from the `camera_position` parameter. Camera topics are read on demand, the
+newest message at request time (nodes/latest.py): a cloud is decoded only when it is used, and
+frames nobody asks for cost this node nothing. A cloud's age (`max_cloud_age`) is the node clock
+minus its stamp (use_sim_time with a lockstep driver).
 
 Which objects to look for comes from the scene's task: parameter `task` (settable at run time with
 `ros2 param set`), or a std_msgs/String on `perception/set_task` (reliable, transient local;
@@ -20,11 +23,11 @@ from __future__ import annotations
 
 import sys
 import threading
-import time
 
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
+from rclpy.time import Time
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import PointCloud2
@@ -39,6 +42,7 @@ from skillgen_ros.core.perception.pipeline import (EstimatedPose, PerceptionPara
                                                    estimate_poses)
 from skillgen_ros.core.perception.pose import PoseParams
 from skillgen_ros.nodes.convert import cloud_to_points, points_to_cloud, pose_from_msg, pose_to_msg
+from skillgen_ros.nodes.latest import LatestMessage
 from skillgen_ros.nodes.runtime import run_node
 
 S = PerceptionStatus
@@ -73,18 +77,15 @@ class PerceptionNode(Node):
         self.declare_parameter("obstacle_volume", True, d(description="voxel-hull volumes instead of raw points"))
         self.declare_parameter("obstacle_voxel", 0.01, d(description="m; obstacle volume voxel"))
         self._lock = threading.Lock()
-        self._front: PointCloud2 | None = None
-        self._wrist: PointCloud2 | None = None
         self._truth: ObjectPoseArray | None = None
-        self._front_t = self._wrist_t = 0.0
         self._models: dict = {}
         self._task = ""
         self._read_params()
         self.add_on_set_parameters_callback(self._on_params)
 
-        self.create_subscription(PointCloud2, "camera/front/points", self._on_front, qos_profile_sensor_data)
-        self.create_subscription(PointCloud2, "camera/wrist/points", self._on_wrist, qos_profile_sensor_data)
-        self.create_subscription(PoseStamped, "camera/front/pose", self._on_camera_pose, qos_profile_sensor_data)
+        self._front = LatestMessage(self, PointCloud2, "camera/front/points", qos_profile_sensor_data)
+        self._wrist = LatestMessage(self, PointCloud2, "camera/wrist/points", qos_profile_sensor_data)
+        self._camera_pose = LatestMessage(self, PoseStamped, "camera/front/pose", qos_profile_sensor_data)
         self.create_subscription(String, "perception/set_task", self._on_set_task, LATCHED)
         if self.mode == "ground_truth":
             self.create_subscription(ObjectPoseArray, "sim/ground_truth/object_poses", self._on_truth, LATCHED)
@@ -146,19 +147,11 @@ class PerceptionNode(Node):
             self._task, self._models = task, models
 
     # ------------------------------------------------------------------ inputs
-    def _on_front(self, msg: PointCloud2) -> None:
-        with self._lock:
-            self._front, self._front_t = msg, time.monotonic()
+    def _age(self, msg) -> float:
+        return (self.get_clock().now() - Time.from_msg(msg.header.stamp)).nanoseconds * 1e-9
 
-    def _on_camera_pose(self, msg: PoseStamped) -> None:
-        if msg.header.frame_id == self.world_frame:
-            p = msg.pose.position
-            with self._lock:
-                self.camera = np.array([p.x, p.y, p.z])
-
-    def _on_wrist(self, msg: PointCloud2) -> None:
-        with self._lock:
-            self._wrist, self._wrist_t = msg, time.monotonic()
+    def _fresh(self, msg) -> bool:
+        return msg is not None and (self.max_age <= 0 or self._age(msg) <= self.max_age)
 
     def _on_truth(self, msg: ObjectPoseArray) -> None:
         with self._lock:
@@ -193,8 +186,10 @@ class PerceptionNode(Node):
 
     def _estimate(self, object_ids: list[str]):
         with self._lock:
-            front, front_t, wrist, wrist_t = self._front, self._front_t, self._wrist, self._wrist_t
             models, truth, task, camera = dict(self._models), self._truth, self._task, self.camera
+        pose = self._camera_pose.latest()
+        if pose is not None and pose.header.frame_id == self.world_frame:
+            camera = np.array([pose.pose.position.x, pose.pose.position.y, pose.pose.position.z])
         none = np.zeros((0, 3))
         if not task:
             return S.NO_SCENE, "no task set (parameter task or topic perception/set_task)", {}, none, {}
@@ -211,14 +206,15 @@ class PerceptionNode(Node):
             if missing:
                 return S.OBJECT_MISSING, f"ground truth lacks {missing}", got, none, {}
             return S.OK, f"ground truth for {len(got)} object(s)", got, none, {}
-        now = time.monotonic()
-        if front is None or (self.max_age > 0 and now - front_t > self.max_age):
+        front = self._front.latest()
+        if not self._fresh(front):
             return S.NO_DATA, "no recent cloud on camera/front/points", {}, none, {}
         if front.header.frame_id != self.world_frame:
             return (S.WRONG_FRAME, f"cloud is in frame {front.header.frame_id!r}, expected {self.world_frame!r}",
                     {}, none, {})
         pts = cloud_to_points(front)
-        if self.use_wrist and wrist is not None and (self.max_age <= 0 or now - wrist_t <= self.max_age):
+        wrist = self._wrist.latest() if self.use_wrist else None
+        if self._fresh(wrist):
             if wrist.header.frame_id == self.world_frame:
                 pts = np.concatenate([pts, cloud_to_points(wrist)])
         r = estimate_poses(pts, models, self.params, camera, object_ids or None)

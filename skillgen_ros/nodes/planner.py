@@ -2,9 +2,12 @@
 
 Interfaces (relative names):
 - service `plan_to_pose` (skillgen_interfaces/srv/PlanToPose)
-- subscribes `joint_states` (start configuration when the request gives none),
-  `camera/front/points` + `camera/wrist/points` (sensor QoS) and `perception/obstacles`
+- reads one `joint_states` message on demand when a request gives no start configuration (no
+  standing subscription: in lockstep joint_states come hundreds of times a second and each would
+  wake this node)
+- subscribes `camera/front/points` + `camera/wrist/points` (sensor QoS) and `perception/obstacles`
   (reliable, transient local) for SOURCE_POINT_CLOUD; the perception cloud wins when present.
+  They are read on demand, the newest at request time (nodes/latest.py), and decoded only then.
 - publishes `planner/path_markers` (visualization_msgs/MarkerArray, latched) for Foxglove
 - action client `execute_trajectory` (skillgen_interfaces/action/ExecuteTrajectory)
 
@@ -21,22 +24,23 @@ held object (`attached_object`, attached as spheres filling its box) may touch t
 below it at the start and at the goal (or the table). Bad requests are answered with a status
 code; the node keeps serving.
 Callbacks: the service runs in its own mutually exclusive group; subscriptions and the action
-client in a reentrant group, so state keeps updating while a request plans or executes.
+client in a reentrant group, so clouds keep updating while a request plans or executes.
 """
 from __future__ import annotations
 
 import math
 import sys
-import threading
 import time
 import traceback
 
 import numpy as np
+import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionClient
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy, qos_profile_sensor_data
+from rclpy.wait_for_message import wait_for_message
 from geometry_msgs.msg import Point
 from sensor_msgs.msg import JointState, PointCloud2
 from visualization_msgs.msg import Marker, MarkerArray
@@ -52,6 +56,7 @@ from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.planning.planner import Mode, MotionPlanner, PlanStatus
 from skillgen_ros.core.robot import ARM_JOINTS
 from skillgen_ros.nodes import convert
+from skillgen_ros.nodes.latest import LatestMessage
 from skillgen_ros.nodes.runtime import run_node
 
 WORLD_FRAMES = ("", "world", "panda_link0")
@@ -100,21 +105,13 @@ class PlannerNode(Node):
         self.planner = MotionPlanner(self.kin, self.ik, self.cm, p["retreat_distance"],
                                      p["approach_distance"], ik_timeout=p["ik_timeout"],
                                      velocity_scale=p["velocity_scale"], dt=p["dt"], seed=seed)
-        self._lock = threading.Lock()
-        self._q: np.ndarray | None = None
         self._boxes: dict[str, Box] = {}
-        self._clouds: dict[str, np.ndarray] = {}
-        self._cloud_frames_bad: dict[str, str] = {}
+        self._clouds = {t: LatestMessage(self, PointCloud2, t, qos_profile_sensor_data)
+                        for t in ("camera/front/points", "camera/wrist/points")}
+        self._clouds["perception/obstacles"] = LatestMessage(self, PointCloud2, "perception/obstacles", LATCHED)
+        self._state_node: Node | None = None
 
         state_group = ReentrantCallbackGroup()
-        self.create_subscription(JointState, "joint_states", self._on_joints, 10,
-                                 callback_group=state_group)
-        for topic in ("camera/front/points", "camera/wrist/points"):
-            self.create_subscription(PointCloud2, topic, lambda m, t=topic: self._on_cloud(t, m),
-                                     qos_profile_sensor_data, callback_group=state_group)
-        self.create_subscription(PointCloud2, "perception/obstacles",
-                                 lambda m: self._on_cloud("perception/obstacles", m), LATCHED,
-                                 callback_group=state_group)
         self.markers = self.create_publisher(MarkerArray, "planner/path_markers", LATCHED)
         self.exec_client = ActionClient(self, ExecuteTrajectory, "execute_trajectory",
                                         callback_group=state_group)
@@ -123,26 +120,31 @@ class PlannerNode(Node):
         self.get_logger().info("planner ready")
 
     # -- state -------------------------------------------------------------------------------
-    def _on_joints(self, msg: JointState):
+    def _current_q(self, timeout: float = 2.0) -> np.ndarray | None:
+        """The arm configuration from the next joint_states, read through a private, never-spun
+        node (a subscription on this node would race the executor for the message)."""
+        if self._state_node is None:
+            self._state_node = rclpy.create_node(f"{self.get_name()}_state", namespace=self.get_namespace(),
+                                                 context=self.context)
+        ok, msg = wait_for_message(JointState, self._state_node, "joint_states", time_to_wait=timeout)
+        if not ok:
+            return None
         idx = {n: i for i, n in enumerate(msg.name)}
-        if all(j in idx for j in ARM_JOINTS) and len(msg.position) == len(msg.name):
-            with self._lock:
-                self._q = np.array([msg.position[idx[j]] for j in ARM_JOINTS])
-
-    def _on_cloud(self, topic: str, msg: PointCloud2):
-        with self._lock:
-            if msg.header.frame_id not in WORLD_FRAMES:
-                self._cloud_frames_bad[topic] = msg.header.frame_id
-                return
-            self._cloud_frames_bad.pop(topic, None)
-            self._clouds[topic] = convert.cloud_to_points(msg)
+        if not all(j in idx for j in ARM_JOINTS) or len(msg.position) != len(msg.name):
+            return None
+        return np.array([msg.position[idx[j]] for j in ARM_JOINTS])
 
     def _cloud(self) -> np.ndarray:
-        with self._lock:
-            if "perception/obstacles" in self._clouds:
-                return self._clouds["perception/obstacles"]
-            parts = [c for t, c in self._clouds.items()]
-        return np.vstack(parts) if parts else np.empty((0, 3))
+        """The perception obstacle cloud when there is one, else the camera clouds fused; clouds in
+        frames other than the world's are skipped, and only clouds in wrong frames is an error."""
+        msgs = {t: sub.latest() for t, sub in self._clouds.items()}
+        msgs = {t: m for t, m in msgs.items() if m is not None}
+        good = {t: m for t, m in msgs.items() if m.header.frame_id in WORLD_FRAMES}
+        if len(good) < len(msgs) and not good:
+            raise InvalidInputError("point clouds in unsupported frames: "
+                                    f"{ {t: m.header.frame_id for t, m in msgs.items()} }")
+        use = [good["perception/obstacles"]] if "perception/obstacles" in good else list(good.values())
+        return np.vstack([convert.cloud_to_points(m) for m in use]) if use else np.empty((0, 3))
 
     # -- service -----------------------------------------------------------------------------
     def _on_plan(self, req: PlanToPose.Request, resp: PlanToPose.Response):
@@ -197,10 +199,9 @@ class PlannerNode(Node):
             if q0.shape != (7,) or not np.all(np.isfinite(q0)):
                 raise InvalidInputError("start_positions must be 7 finite values")
         else:
-            with self._lock:
-                q0 = None if self._q is None else self._q.copy()
+            q0 = self._current_q()
             if q0 is None:
-                raise InvalidInputError("no start_positions and no joint_states received yet")
+                raise InvalidInputError("no start_positions and no joint_states within 2 s")
         boxes = dict(self._boxes)
         T0 = self.kin.fk(q0)
         attached = None
@@ -215,10 +216,6 @@ class PlannerNode(Node):
             self.cm.set_boxes(list(obstacles.values()))
             self.cm.set_point_cloud(np.empty((0, 3)))
         else:
-            with self._lock:
-                bad = dict(self._cloud_frames_bad)
-            if bad and not self._clouds:
-                raise InvalidInputError(f"point clouds in unsupported frames: {bad}")
             self.cm.set_boxes(list(obstacles.values()), as_obstacles=False)
             self.cm.set_point_cloud(self._cloud(), self_filter_q=q0, attached=attached,
                                     fill_below=bool(self.p["cloud_fill_below"]))

@@ -16,7 +16,7 @@ from skillgen_ros import rosenv  # noqa: F401  (sets loopback discovery before r
 
 import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 
 from skillgen_ros.core.errors import SkillGenError
 
@@ -26,7 +26,13 @@ def _fail(name: str, reason: str, msg: str) -> int:
     return 2
 
 
-def run_node(factory: Callable[[], "rclpy.node.Node"], args=None, threads: int = 4, name: str = "") -> int:
+def run_node(factory: Callable[[], "rclpy.node.Node"], args=None, threads: int = 4, name: str = "",
+             executor: str = "multi") -> int:
+    """executor: "multi" (MultiThreadedExecutor: nodes whose callbacks block) or "single"
+    (SingleThreadedExecutor: nodes on the hot path whose long work is a coroutine). A node may
+    override it with an `executor_kind` attribute decided from its parameters. rclpy's C++
+    EventsExecutor would be cheaper still, but in this rclpy (7.1.5) it never answers an action
+    server's goal requests."""
     args = sys.argv if args is None else args
     name = name or getattr(factory, "__name__", "node")
     try:
@@ -41,12 +47,13 @@ def run_node(factory: Callable[[], "rclpy.node.Node"], args=None, threads: int =
             return _fail(name, e.reason, str(e.args[0]))
         except ParameterException as e:  # wrong type / unset required parameter in the params file
             return _fail(name, "INVALID_PARAMETER", str(e))
-        executor = MultiThreadedExecutor(num_threads=threads)
-        executor.add_node(node)
+        kind = getattr(node, "executor_kind", executor)
+        ex = SingleThreadedExecutor() if kind == "single" else MultiThreadedExecutor(num_threads=threads)
+        ex.add_node(node)
         try:
-            executor.spin()
+            ex.spin()
         finally:
-            executor.shutdown()
+            ex.shutdown()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -9,23 +9,27 @@ N(0,1)*action_noise on the pose dims (gripper copied), and streams the commanded
 one controller period. Feedback every step; the result carries every executed step so datagen
 can write the dataset.
 
-Parameters (params/skill_replay.yaml): demos_dir, action_noise, step_timeout, frame_id.
+The step loop is the graph's hot path (one round trip per control period), so the node runs on a
+SingleThreadedExecutor and the action is a coroutine that awaits the next ee_pose: no thread
+pool, no busy wait set (a MultiThreadedExecutor spun a whole core here while a goal blocked).
+
+Parameters (params/skill_replay.yaml): demos_dir, action_noise, step_timeout, frame_id, feedback_hz.
 """
 from __future__ import annotations
 
 import sys
-import threading
+import time
 from pathlib import Path
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
+from rclpy.task import Future
 from sensor_msgs.msg import JointState
 
 from skillgen_interfaces.action import ReplaySkill
-from skillgen_interfaces.msg import GripperState, OscTarget
+from skillgen_interfaces.msg import OscTarget
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.geometry import Pose, validate_pose
 from skillgen_ros.core.generation.selection import make_strategy
@@ -35,6 +39,7 @@ from skillgen_ros.core.skills.replay import plan_replay
 from skillgen_ros.core.skills.transform import matrix_to_array
 from skillgen_ros.core.tasks import get_task
 from skillgen_ros.nodes import convert
+from skillgen_ros.nodes.feedback import FeedbackThrottle
 from skillgen_ros.nodes.runtime import run_node
 
 
@@ -45,44 +50,56 @@ class SkillReplayNode(Node):
         self.declare_parameter("action_noise", 0.05)
         self.declare_parameter("step_timeout", 5.0)
         self.declare_parameter("frame_id", "world")
+        self.declare_parameter("feedback_hz", 20.0)
         self._demos: dict[tuple[str, str], list] = {}
-        self._cond = threading.Condition()
         self._ee: PoseStamped | None = None
         self._ee_count = 0
+        self._waiter: tuple[int, Future] | None = None  # (ee count to exceed, future the goal awaits)
+        self._deadline = float("inf")
         self._q = np.zeros(7)
         self._width = 0.0
-        state = MutuallyExclusiveCallbackGroup()
-        self.create_subscription(PoseStamped, "ee_pose", self._on_ee, 10, callback_group=state)
-        self.create_subscription(JointState, "joint_states", self._on_joints, 10, callback_group=state)
-        self.create_subscription(GripperState, "gripper_state", self._on_gripper, 10, callback_group=state)
+        self.create_subscription(PoseStamped, "ee_pose", self._on_ee, 10)
+        self.create_subscription(JointState, "joint_states", self._on_joints, 10)  # arm + fingers
         self.osc_pub = self.create_publisher(OscTarget, "osc_target", 10)
-        self._busy = threading.Lock()
+        self._busy = False
         self.server = ActionServer(self, ReplaySkill, "replay_skill", self._execute,
-                                   goal_callback=self._on_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT,
-                                   callback_group=ReentrantCallbackGroup())
+                                   goal_callback=self._on_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT)
+        self.create_timer(0.1, self._on_watchdog)
 
-    # -- state
+    # -- state (all callbacks run on the one executor thread: no locks)
     def _on_ee(self, msg: PoseStamped):
-        with self._cond:
-            self._ee = msg
-            self._ee_count += 1
-            self._cond.notify_all()
+        self._ee = msg
+        self._ee_count += 1
+        if self._waiter is not None and self._ee_count > self._waiter[0]:
+            self._resolve(msg)
+
+    def _resolve(self, value) -> None:
+        _after, fut = self._waiter
+        self._waiter = None
+        if not fut.done():
+            fut.set_result(value)
+
+    def _on_watchdog(self):
+        if self._waiter is not None and time.monotonic() > self._deadline:
+            self._resolve(None)
 
     def _on_joints(self, msg: JointState):
         if len(msg.position) >= 7:
             self._q = np.array(msg.position[:7])
+        if len(msg.position) >= 9:
+            self._width = float(msg.position[7] + msg.position[8])  # finger joints: half widths
 
-    def _on_gripper(self, msg: GripperState):
-        self._width = float(msg.width)
-
-    def _wait_ee(self, after: int, timeout: float) -> PoseStamped | None:
-        with self._cond:
-            ok = self._cond.wait_for(lambda: self._ee_count > after, timeout)
-            return self._ee if ok else None
+    async def _wait_ee(self, after: int, timeout: float) -> PoseStamped | None:
+        """The first ee_pose after the `after`-th one, or None after `timeout` s (watchdog)."""
+        if self._ee_count > after:
+            return self._ee
+        fut = Future()
+        self._waiter, self._deadline = (after, fut), time.monotonic() + timeout
+        return await fut
 
     # -- action
     def _on_goal(self, goal: ReplaySkill.Goal):
-        return GoalResponse.REJECT if self._busy.locked() else GoalResponse.ACCEPT
+        return GoalResponse.REJECT if self._busy else GoalResponse.ACCEPT
 
     def demos_for(self, task: str, directory: str):
         d = directory or str(Path(self.get_parameter("demos_dir").value) / task)
@@ -94,11 +111,14 @@ class SkillReplayNode(Node):
             self._demos[key] = load_source_demos(paths, get_task(task))
         return self._demos[key]
 
-    def _execute(self, goal_handle):
-        with self._busy:
-            return self._replay(goal_handle)
+    async def _execute(self, goal_handle):
+        self._busy = True
+        try:
+            return await self._replay(goal_handle)
+        finally:
+            self._busy = False
 
-    def _replay(self, goal_handle):
+    async def _replay(self, goal_handle):
         g = goal_handle.request
         res = ReplaySkill.Result()
 
@@ -128,9 +148,10 @@ class SkillReplayNode(Node):
         sigma = float(g.action_noise) if g.action_noise >= 0 else float(self.get_parameter("action_noise").value)
         timeout = float(self.get_parameter("step_timeout").value)
         frame = str(self.get_parameter("frame_id").value)
+        feedback = FeedbackThrottle(float(self.get_parameter("feedback_hz").value))
         ee = self._ee
         if ee is None:
-            ee = self._wait_ee(0, timeout)
+            ee = await self._wait_ee(0, timeout)
             if ee is None:
                 return finish(False, "TIMEOUT", "no ee_pose from the driver")
         plan = plan_replay(seg, T_W_O, convert.pose_from_msg(ee.pose).matrix(), recovery=bool(g.recovery))
@@ -141,8 +162,7 @@ class SkillReplayNode(Node):
                 goal_handle.canceled()
                 res.reason, res.message = "CANCELED", f"canceled at step {k}"
                 return res
-            with self._cond:
-                count, ee = self._ee_count, self._ee
+            count, ee = self._ee_count, self._ee
             current = convert.pose_from_msg(ee.pose).matrix()
             noise = 0.0 if plan.recovery[k] else sigma
             a, commanded = make_action(plan.targets[k], current, float(plan.gripper[k]), noise, rng)
@@ -157,11 +177,12 @@ class SkillReplayNode(Node):
             qs.append(self._q.copy())
             widths.append(self._width)
             self.osc_pub.publish(msg)
-            if self._wait_ee(count, timeout) is None:
+            if await self._wait_ee(count, timeout) is None:
                 self._fill(res, actions, abs_, ees, qs, widths, plan.recovery[:k + 1])
                 return finish(False, "TIMEOUT", f"driver did not step within {timeout} s at step {k}")
-            fb = ReplaySkill.Feedback(step=k + 1, total_steps=n, stage="recovery" if plan.recovery[k] else "skill")
-            goal_handle.publish_feedback(fb)
+            if feedback.due(k == n - 1):
+                goal_handle.publish_feedback(ReplaySkill.Feedback(
+                    step=k + 1, total_steps=n, stage="recovery" if plan.recovery[k] else "skill"))
         self._fill(res, actions, abs_, ees, qs, widths, plan.recovery)
         return finish(True, "OK", f"replayed skill {g.skill_index} of demo {j} ({n} steps)")
 
@@ -177,7 +198,7 @@ class SkillReplayNode(Node):
 
 
 def main(args=None) -> int:
-    return run_node(SkillReplayNode, args)
+    return run_node(SkillReplayNode, args, executor="single")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,73 @@
+"""Pull-model subscriptions: read the newest message of a topic only when you need it.
+
+A node that needs "the current joint state" or "the latest cloud" once per request should not be
+woken for every message: in lockstep the driver publishes hundreds of periods a second, and on a
+2-core machine each wakeup of a Python executor costs about a millisecond of someone's time.
+`LatestMessage` keeps a depth-1 KEEP_LAST reader on a private node that no executor spins; the
+middleware retains the newest sample, and `latest()` / `wait_newer()` take it on demand from the
+caller's thread. Topic names resolve in the owner's namespace, and global remaps apply, as for
+any subscription of the owner.
+"""
+from __future__ import annotations
+
+import itertools
+import threading
+import time
+
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile
+
+_ids = itertools.count()
+
+
+class LatestMessage:
+    def __init__(self, owner: Node, msg_type, topic: str, qos: QoSProfile | None = None):
+        base = qos or QoSProfile(depth=1)
+        profile = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=base.reliability,
+                             durability=base.durability)
+        self._node = rclpy.create_node(f"{owner.get_name()}_pull_{next(_ids)}", namespace=owner.get_namespace(),
+                                       context=owner.context, start_parameter_services=False)
+        self._node.create_subscription(msg_type, topic, self._on_msg, profile)
+        self._exec = SingleThreadedExecutor(context=owner.context)
+        self._exec.add_node(self._node)
+        self._lock = threading.Lock()  # one puller at a time
+        self.msg = None
+        self.count = 0  # messages taken so far
+
+    def _on_msg(self, msg) -> None:
+        self.msg = msg
+        self.count += 1
+
+    def _drain(self, timeout: float) -> None:
+        self._exec.spin_once(timeout_sec=timeout)
+
+    def snapshot(self) -> tuple[object, int]:
+        """(newest message, count) after taking whatever is waiting: call before sending a command
+        whose effect you will wait for with wait_newer(count, ...)."""
+        with self._lock:
+            self._drain(0.0)
+            return self.msg, self.count
+
+    def latest(self, timeout: float = 0.0):
+        """The newest message (waiting up to `timeout` s if none has ever arrived), or None."""
+        with self._lock:
+            self._drain(0.0)
+            end = time.monotonic() + timeout
+            while self.msg is None and time.monotonic() < end:
+                self._drain(max(0.0, end - time.monotonic()))
+            return self.msg
+
+    def wait_newer(self, count: int, timeout: float):
+        """The first message taken after the `count`-th one, or None after `timeout` s."""
+        with self._lock:
+            end = time.monotonic() + timeout
+            self._drain(0.0)
+            while self.count <= count and time.monotonic() < end:
+                self._drain(max(0.0, end - time.monotonic()))
+            return self.msg if self.count > count else None
+
+    def destroy(self) -> None:
+        self._exec.shutdown()
+        self._node.destroy_node()

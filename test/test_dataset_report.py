@@ -31,6 +31,7 @@ def test_paper_table():
     assert paper_rate("square", "D0", "skillgen", augment=True) == 30.7
     assert paper_rate("coffee", "clutter", "skillgen") == pytest.approx(52.0)
     assert paper_rate("square", "D0", "replay_noise") is None
+    assert paper_rate("NutAssembly", "D1", "skillgen") == 91.7  # the task suite's CamelCase name
     core = [v["skillgen"] for (t, var), v in PAPER_RATES.items() if var in ("D0", "D1", "D2")]
     assert np.mean(core) == pytest.approx(AVERAGE["skillgen"], abs=0.1)
 

@@ -217,11 +217,19 @@ class SimGenerationEnv:
         tr = res.trajectory
         observations = []
         others = [o.id for o in self.scene.objects if o.id not in (skill_object, attached)]
+        # The planner lets the hand touch what it just released, and that object's support, on the
+        # retreat (the paper ignores these contacts there): so does the execution check, while the
+        # EE is still within the retreat distance of where it started.
         w = self.world
+        start_ee, near = w.ee_pose().position, self.planner.retreat_distance + 0.01
+        on_retreat = [x for x in (released, released_support) if x]
         w.start_trajectory([f"panda_joint{i}" for i in range(1, 8)], tr.times, tr.positions, tr.velocities)
         while True:
             _, _, done = w.step_trajectory()
-            if others and w.robot_in_collision_with(others):
+            check = others
+            if on_retreat and np.linalg.norm(w.ee_pose().position - start_ee) < near:
+                check = [o for o in others if o not in on_retreat]
+            if check and w.robot_in_collision_with(check):
                 self._collided = True
             observations.append(self.observe())
             self._capture_frame()

@@ -27,17 +27,25 @@ def _translate_z(d: float) -> np.ndarray:
 
 def cartesian_line(kin: PandaKinematics, ik: IKSolver, q0, distance: float, steps: int = 10,
                    max_joint_step: float = 0.2, tol_m: float = 1e-3,
-                   tol_rad: float = 1e-3) -> np.ndarray:
-    """Joint waypoints (K,7) moving the EE `distance` metres along its own z (negative = back)."""
+                   tol_rad: float = 1e-3, partial: bool = False) -> np.ndarray:
+    """Joint waypoints (K,7) moving the EE `distance` metres along its own z (negative = back).
+
+    partial: where IK loses the line (e.g. the wrist at its joint limit after a grasp), return
+    the part already done instead of failing, provided at least one step was made."""
     q = np.asarray(q0, float).copy()
     T0 = kin.fk(q)
     dense = [q]
     for s in np.linspace(0.0, 1.0, steps + 1)[1:]:
         qn = ik.solve_local(T0 @ _translate_z(s * distance), q)
+        why = None
         if qn is None:
-            raise CartesianPathError(f"IK lost the line at {s * distance:+.3f} m")
-        if np.abs(qn - q).max() > max_joint_step:
-            raise CartesianPathError(f"joint jump {np.abs(qn - q).max():.2f} rad at {s * distance:+.3f} m")
+            why = f"IK lost the line at {s * distance:+.3f} m"
+        elif np.abs(qn - q).max() > max_joint_step:
+            why = f"joint jump {np.abs(qn - q).max():.2f} rad at {s * distance:+.3f} m"
+        if why is not None:
+            if partial and len(dense) > 1:
+                break
+            raise CartesianPathError(why)
         dense.append(qn)
         q = qn
     dense = np.array(dense)

@@ -199,11 +199,17 @@ class MotionPlanner:
             except CartesianPathError as e:
                 why = f"retreat: {e}"
             if why is not None:
-                # A start that is free without any allowed contact can go straight to transit.
-                if collides(q0[None])[0]:
-                    return fail(PlanStatus.START_IN_COLLISION, why)
-                retreat_path = q0[None]
-                notes.append(f"{why}; retreat skipped (start is clear)")
+                # A start that is free without any allowed contact can go straight to transit;
+                # one in contact (fingertips at the table after a low grasp) may still get clear
+                # on the part of the line IK can follow (the wrist at its limit loses it later).
+                if not collides(q0[None])[0]:
+                    retreat_path = q0[None]
+                    notes.append(f"{why}; retreat skipped (start is clear)")
+                else:
+                    retreat_path = self._partial_retreat(q0, edge_free, allow_start, collides)
+                    if retreat_path is None:
+                        return fail(PlanStatus.START_IN_COLLISION, why)
+                    notes.append(f"{why}; retreat shortened to where IK held the line")
         timings["retreat"] = time.perf_counter() - t
 
         # approach, computed backwards from each goal candidate until one is clear
@@ -265,3 +271,13 @@ class MotionPlanner:
     @staticmethod
     def _segment_free(path: np.ndarray, edge_free, allow) -> bool:
         return all(edge_free(a, b, allow) for a, b in zip(path[:-1], path[1:]))
+
+    def _partial_retreat(self, q0, edge_free, allow, collides) -> np.ndarray | None:
+        """The retreat line as far as IK follows it, if that ends clear of every contact."""
+        try:
+            path = cartesian_line(self.kin, self.ik, q0, -self.retreat_distance, partial=True)
+        except CartesianPathError:
+            return None
+        if len(path) < 2 or collides(path[-1:])[0] or not self._segment_free(path, edge_free, allow):
+            return None
+        return path

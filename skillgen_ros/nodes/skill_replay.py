@@ -6,7 +6,8 @@ absolute target into a normalized delta-pose action from the current EE pose wit
 N(0,1)*action_noise on the pose dims (gripper copied), and streams the commanded pose as
 `osc_target`, one per control period: after each command it waits for the driver's next
 `ee_pose` (a newer stamp), which in lockstep mode is exactly one sim step and in real-time mode
-one controller period. Feedback every step; the result carries every executed step so datagen
+one controller period. Feedback every step (at most feedback_hz per wall second: every step in real
+time, rate-limited in lockstep); the result carries every executed step so datagen
 can write the dataset.
 
 The step loop is the graph's hot path (one round trip per control period), so the node runs on a

@@ -1,0 +1,39 @@
+"""The nodes' read and feedback helpers: pull-model subscriptions and the feedback rate limit."""
+import time
+
+from std_msgs.msg import Int32
+
+from conftest import wait_for
+from skillgen_ros.nodes.feedback import FeedbackThrottle
+from skillgen_ros.nodes.latest import LatestMessage
+
+
+def test_feedback_throttle_limits_rate_but_always_sends_the_final_step():
+    fb = FeedbackThrottle(hz=20.0)
+    assert fb.due()  # the first step always goes out
+    assert not fb.due()  # a step 0 s later does not
+    assert fb.due(final=True)  # the last step always does
+    time.sleep(0.06)
+    assert fb.due()
+    every = FeedbackThrottle(hz=0.0)  # 0: no limit
+    assert all(every.due() for _ in range(5))
+
+
+def test_latest_message_takes_the_newest_on_demand(ros_node):
+    pub = ros_node.create_publisher(Int32, "numbers", 10)
+    reader = LatestMessage(ros_node, Int32, "numbers")
+    try:
+        assert wait_for(lambda: pub.get_subscription_count() > 0, 10)
+        assert reader.latest(timeout=0.2) is None  # nothing published yet
+        for i in (1, 2, 3):
+            pub.publish(Int32(data=i))
+            time.sleep(0.05)
+        assert wait_for(lambda: (m := reader.latest()) is not None and m.data == 3, 5)  # depth 1: the newest
+        msg, count = reader.snapshot()
+        assert msg.data == 3
+        assert reader.wait_newer(count, 0.3) is None  # nothing newer: times out
+        pub.publish(Int32(data=4))
+        newer = reader.wait_newer(count, 5.0)
+        assert newer is not None and newer.data == 4 and reader.count > count
+    finally:
+        reader.destroy()

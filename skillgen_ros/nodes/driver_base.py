@@ -101,6 +101,7 @@ class DriverNode(Node):
         self._pending: tuple[Pose, float] | None = None
         self._last_step_wall = time.monotonic()
         self._types: dict[str, str] = {}
+        self._clock_base = 0.0  # lockstep: sim seconds of earlier scenes, so /clock never goes back
 
         cb = ReentrantCallbackGroup()
         # publishers without default QoS-event handlers: each handler joins every executor wait set,
@@ -151,7 +152,7 @@ class DriverNode(Node):
     # ----------------------------------------------------------------- stepping
     def _stamp(self) -> Time:
         if self.mode == "lockstep":
-            t = self.world.time
+            t = self._clock_base + self.world.time
             return Time(sec=int(t), nanosec=int(round((t - int(t)) * 1e9)) % 1_000_000_000)
         return self.get_clock().now().to_msg()
 
@@ -251,9 +252,12 @@ class DriverNode(Node):
     def _on_reset(self, req: ResetScene.Request, res: ResetScene.Response) -> ResetScene.Response:
         try:
             with self.lock:
+                base = self._clock_base + self.world.time + 1.0 / self.hz
                 scene = self.world.reset(req.task, req.variant, int(req.seed))
+                self._clock_base = base  # the reset state is stamped after everything before it
                 self._types = {o.id: o.type for o in scene.objects}
                 self._publish(cameras=bool(self.camera_every), force=True)
+                reset_stamp = self._stamp()
         except SkillGenError as e:
             res.success, res.reason_code, res.message = False, e.reason, str(e)
             self._report(e)
@@ -265,7 +269,7 @@ class DriverNode(Node):
         res.objects = [SceneObject(id=o.id, type=o.type, mesh_uri=o.mesh_path, half_extents=list(o.half_extents),
                                    has_pose=True, pose=convert.pose_to_msg(scene.poses[o.id]), is_fixture=o.is_fixture)
                        for o in scene.objects]
-        res.joint_state = convert.joint_state(ARM_JOINTS, scene.joint_positions)
+        res.joint_state = convert.joint_state(ARM_JOINTS, scene.joint_positions, stamp=reset_stamp)
         return res
 
     def _on_success(self, req: TaskSuccess.Request, res: TaskSuccess.Response) -> TaskSuccess.Response:

@@ -71,6 +71,7 @@ class RosGraphEnv:
         self.kin = PandaKinematics()
         self.task = ""
         self.scene_objects = []
+        self._reset_stamp = None
         self._estimates: dict[str, Pose] = {}
         self._skill_object: str | None = None
         self.grasps = GraspTracker()
@@ -133,6 +134,7 @@ class RosGraphEnv:
             raise SkillGenError(f"reset_scene: {resp.message}", reason=resp.reason_code or "RESET_FAILED")
         self.task = task
         self.scene_objects = list(resp.objects)
+        self._reset_stamp = resp.joint_state.header.stamp  # perception must use a cloud from now on
         self.task_pub.publish(String(data=f"{task}/{variant}"))
         self._estimates = {}
         self.grasps.clear()
@@ -187,6 +189,8 @@ class RosGraphEnv:
     def _estimate_once(self):
         held = self.grasps.holding()  # in the hand: occluded, tracked instead
         req = EstimatePoses.Request(object_ids=[o.id for o in self.scene_objects if o.id not in (held, "obstacle")])
+        if self._reset_stamp is not None:
+            req.newer_than = self._reset_stamp
         return self._call(self.estimate_cli, req, self.t["perception"], "estimate_poses", "PERCEPTION_FAILED")
 
     def _take_estimates(self, resp) -> dict[str, Pose]:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import sys
 import threading
+import time
 
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -60,7 +61,7 @@ class PerceptionNode(Node):
         self.declare_parameter("camera_position", [1.35, 0.0, 0.70],
                                d(description="front camera position (world) for the visibility score; [] = from above"))
         self.declare_parameter("use_wrist", False, d(description="fuse camera/wrist/points with the front cloud"))
-        self.declare_parameter("max_cloud_age", 0.0, d(description="s; older clouds give NO_DATA; 0 = any age"))
+        self.declare_parameter("max_cloud_age", 0.0, d(description="s; clouds older than this (node clock minus stamp) give NO_DATA; 0 = any age"))
         self.declare_parameter("workspace_lo", [0.2, -0.5, -0.05], d(description="workspace box min (world, m)"))
         self.declare_parameter("workspace_hi", [1.0, 0.5, 0.3], d(description="workspace box max (world, m)"))
         self.declare_parameter("voxel", 0.0025, d(description="m; object-cloud voxel size"))
@@ -167,7 +168,7 @@ class PerceptionNode(Node):
     # ------------------------------------------------------------------ service
     def _on_estimate(self, req: EstimatePoses.Request, res: EstimatePoses.Response) -> EstimatePoses.Response:
         try:
-            status, msg, poses, obstacles, timings = self._estimate(list(req.object_ids))
+            status, msg, poses, obstacles, timings = self._estimate(list(req.object_ids), req.newer_than)
         except Exception as e:  # noqa: BLE001 - a bug must not take the node down; report it
             self.get_logger().error(f"estimate_poses failed: {e!r}")
             status, msg, poses, obstacles, timings = S.INTERNAL_ERROR, repr(e), {}, np.zeros((0, 3)), {}
@@ -184,7 +185,22 @@ class PerceptionNode(Node):
             self.pub_markers.publish(markers(poses, self._models, self.world_frame, stamp))
         return res
 
-    def _estimate(self, object_ids: list[str]):
+    def _fresh_front(self, newer_than, wait: float = 1.0):
+        """The newest front cloud, waiting up to `wait` s for one stamped at/after `newer_than`."""
+        msg, count = self._front.snapshot()
+        floor = Time.from_msg(newer_than)
+        if floor.nanoseconds == 0:
+            return msg
+        end = time.monotonic() + wait
+        while msg is None or Time.from_msg(msg.header.stamp) < floor:
+            if time.monotonic() >= end:
+                return None
+            newer = self._front.wait_newer(count, end - time.monotonic())
+            if newer is not None:
+                msg, count = newer, self._front.count
+        return msg
+
+    def _estimate(self, object_ids: list[str], newer_than=None):
         with self._lock:
             models, truth, task, camera = dict(self._models), self._truth, self._task, self.camera
         pose = self._camera_pose.latest()
@@ -206,7 +222,7 @@ class PerceptionNode(Node):
             if missing:
                 return S.OBJECT_MISSING, f"ground truth lacks {missing}", got, none, {}
             return S.OK, f"ground truth for {len(got)} object(s)", got, none, {}
-        front = self._front.latest()
+        front = self._front.latest() if newer_than is None else self._fresh_front(newer_than)
         if not self._fresh(front):
             return S.NO_DATA, "no recent cloud on camera/front/points", {}, none, {}
         if front.header.frame_id != self.world_frame:

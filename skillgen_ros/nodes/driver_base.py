@@ -206,25 +206,29 @@ class DriverNode(Node):
         of its topics has a reader."""
         w, stamp = self.world, self._stamp()
         header = Header(frame_id=self.frame, stamp=stamp)
-        if self.pub_clock is not None and (force or self.pub_clock.get_subscription_count()):
+
+        def wanted(*pubs) -> bool:
+            return force or any(p.get_subscription_count() for p in pubs)
+
+        if self.pub_clock is not None and wanted(self.pub_clock):
             self.pub_clock.publish(Clock(clock=stamp))
-        if force or self.pub_js.get_subscription_count():
+        if wanted(self.pub_js):
             q = np.concatenate([w.joint_positions(), w.finger_positions()])
             qd = np.concatenate([w.joint_velocities(), np.zeros(2)])
             self.pub_js.publish(convert.joint_state(ARM_JOINTS + FINGER_JOINTS, q, qd, stamp=stamp))
-        if force or self.pub_grip.get_subscription_count():
+        if wanted(self.pub_grip):
             self.pub_grip.publish(GripperState(header=header, width=float(w.gripper_width()),
                                                command=float(w.gripper_command), grasping=bool(w.is_grasping())))
         # ee_pose last: a closed-loop client (skill_replay) takes it as "this period's state is out"
-        if force or self.pub_ee.get_subscription_count():
+        if wanted(self.pub_ee):
             self.pub_ee.publish(convert.pose_stamped(w.ee_pose(), self.frame, stamp))
-        if w.scene is not None and (force or self.pub_gt.get_subscription_count()):
+        if w.scene is not None and wanted(self.pub_gt):
             self.pub_gt.publish(ObjectPoseArray(header=header, objects=[
                 ObjectPose(id=oid, type=self._types[oid], pose=convert.pose_to_msg(p), confidence=1.0)
                 for oid, p in w.object_poses().items()]))
         if cameras:
             for n in self.camera_names:
-                if force or any(p.get_subscription_count() for p in self.cam_pubs[n].values()):
+                if wanted(*self.cam_pubs[n].values()):
                     self._publish_camera(n, stamp)
 
     def _publish_camera(self, name: str, stamp: Time) -> None:

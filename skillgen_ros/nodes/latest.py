@@ -50,23 +50,23 @@ class LatestMessage:
             self._drain(0.0)
             return self.msg, self.count
 
+    def wait_for(self, accept, timeout: float):
+        """The newest message once `accept(msg)` holds for it (msg may be None), taking messages
+        as they come for up to `timeout` s; None if it never does."""
+        with self._lock:
+            end = time.monotonic() + timeout
+            self._drain(0.0)
+            while not accept(self.msg) and time.monotonic() < end:
+                self._drain(max(0.0, end - time.monotonic()))
+            return self.msg if accept(self.msg) else None
+
     def latest(self, timeout: float = 0.0):
         """The newest message (waiting up to `timeout` s if none has ever arrived), or None."""
-        with self._lock:
-            self._drain(0.0)
-            end = time.monotonic() + timeout
-            while self.msg is None and time.monotonic() < end:
-                self._drain(max(0.0, end - time.monotonic()))
-            return self.msg
+        return self.wait_for(lambda m: m is not None, timeout)
 
     def wait_newer(self, count: int, timeout: float):
         """The first message taken after the `count`-th one, or None after `timeout` s."""
-        with self._lock:
-            end = time.monotonic() + timeout
-            self._drain(0.0)
-            while self.count <= count and time.monotonic() < end:
-                self._drain(max(0.0, end - time.monotonic()))
-            return self.msg if self.count > count else None
+        return self.wait_for(lambda _m: self.count > count, timeout)
 
     def destroy(self) -> None:
         self._exec.shutdown()

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import sys
 import threading
-import time
 
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -185,20 +184,13 @@ class PerceptionNode(Node):
             self.pub_markers.publish(markers(poses, self._models, self.world_frame, stamp))
         return res
 
-    def _fresh_front(self, newer_than, wait: float = 1.0):
-        """The newest front cloud, waiting up to `wait` s for one stamped at/after `newer_than`."""
-        msg, count = self._front.snapshot()
-        floor = Time.from_msg(newer_than)
+    def _front_cloud(self, newer_than=None, wait: float = 1.0):
+        """The newest front cloud; with a nonzero `newer_than`, waiting up to `wait` s for one
+        stamped at or after it (None if none comes)."""
+        floor = Time() if newer_than is None else Time.from_msg(newer_than)
         if floor.nanoseconds == 0:
-            return msg
-        end = time.monotonic() + wait
-        while msg is None or Time.from_msg(msg.header.stamp) < floor:
-            if time.monotonic() >= end:
-                return None
-            newer = self._front.wait_newer(count, end - time.monotonic())
-            if newer is not None:
-                msg, count = newer, self._front.count
-        return msg
+            return self._front.latest()
+        return self._front.wait_for(lambda m: m is not None and Time.from_msg(m.header.stamp) >= floor, wait)
 
     def _estimate(self, object_ids: list[str], newer_than=None):
         with self._lock:
@@ -222,7 +214,7 @@ class PerceptionNode(Node):
             if missing:
                 return S.OBJECT_MISSING, f"ground truth lacks {missing}", got, none, {}
             return S.OK, f"ground truth for {len(got)} object(s)", got, none, {}
-        front = self._front.latest() if newer_than is None else self._fresh_front(newer_than)
+        front = self._front_cloud(newer_than)
         if not self._fresh(front):
             return S.NO_DATA, "no recent cloud on camera/front/points", {}, none, {}
         if front.header.frame_id != self.world_frame:

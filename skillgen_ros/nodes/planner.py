@@ -2,9 +2,9 @@
 
 Interfaces (relative names):
 - service `plan_to_pose` (skillgen_interfaces/srv/PlanToPose)
-- reads one `joint_states` message on demand when a request gives no start configuration (no
-  standing subscription: in lockstep joint_states come hundreds of times a second and each would
-  wake this node)
+- reads the newest `joint_states` on demand when a request gives no start configuration (like
+  the clouds below: in lockstep joint_states come hundreds of times a second and each would wake
+  a subscribed node)
 - subscribes `camera/front/points` + `camera/wrist/points` (sensor QoS) and `perception/obstacles`
   (reliable, transient local) for SOURCE_POINT_CLOUD; the perception cloud wins when present.
   They are read on demand, the newest at request time (nodes/latest.py), and decoded only then.
@@ -34,13 +34,11 @@ import time
 import traceback
 
 import numpy as np
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionClient
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy, qos_profile_sensor_data
-from rclpy.wait_for_message import wait_for_message
 from geometry_msgs.msg import Point
 from sensor_msgs.msg import JointState, PointCloud2
 from visualization_msgs.msg import Marker, MarkerArray
@@ -109,7 +107,7 @@ class PlannerNode(Node):
         self._clouds = {t: LatestMessage(self, PointCloud2, t, qos_profile_sensor_data)
                         for t in ("camera/front/points", "camera/wrist/points")}
         self._clouds["perception/obstacles"] = LatestMessage(self, PointCloud2, "perception/obstacles", LATCHED)
-        self._state_node: Node | None = None
+        self._joints = LatestMessage(self, JointState, "joint_states")
 
         state_group = ReentrantCallbackGroup()
         self.markers = self.create_publisher(MarkerArray, "planner/path_markers", LATCHED)
@@ -121,13 +119,9 @@ class PlannerNode(Node):
 
     # -- state -------------------------------------------------------------------------------
     def _current_q(self, timeout: float = 2.0) -> np.ndarray | None:
-        """The arm configuration from the next joint_states, read through a private, never-spun
-        node (a subscription on this node would race the executor for the message)."""
-        if self._state_node is None:
-            self._state_node = rclpy.create_node(f"{self.get_name()}_state", namespace=self.get_namespace(),
-                                                 context=self.context)
-        ok, msg = wait_for_message(JointState, self._state_node, "joint_states", time_to_wait=timeout)
-        if not ok:
+        """The arm configuration from the newest joint_states (waiting up to `timeout` s for one)."""
+        msg = self._joints.latest(timeout)
+        if msg is None:
             return None
         idx = {n: i for i, n in enumerate(msg.name)}
         if not all(j in idx for j in ARM_JOINTS) or len(msg.position) != len(msg.name):

@@ -6,6 +6,7 @@ other and never send traffic off this machine.
 """
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import subprocess
@@ -94,22 +95,34 @@ def wait_for(predicate, timeout: float = 10.0, period: float = 0.05) -> bool:
     return bool(predicate())
 
 
-@pytest.fixture
-def ros_node(ros_domain, request):
-    """An rclpy node in this process, on the test's domain, spun in a background thread."""
+@contextlib.contextmanager
+def client_node(domain: int, name: str, executor_cls=None, spin: bool = False):
+    """(node, executor) in a context of their own on `domain`; the executor (single-threaded by
+    default) spins in a background thread if `spin`, else the test spins it. Torn down on exit."""
     import threading
 
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
     ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=ros_domain)
-    node = rclpy.create_node(f"{request.module.__name__.split('.')[-1]}_node", context=ctx)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
-    thread = threading.Thread(target=ex.spin, daemon=True)
-    thread.start()
-    yield node
-    ex.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=ctx)
+    rclpy.init(context=ctx, domain_id=domain)
+    try:
+        node = rclpy.create_node(name, context=ctx)
+        ex = (executor_cls or SingleThreadedExecutor)(context=ctx)
+        ex.add_node(node)
+        if spin:
+            threading.Thread(target=ex.spin, daemon=True).start()
+        try:
+            yield node, ex
+        finally:
+            ex.shutdown()
+            node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
+
+
+@pytest.fixture
+def ros_node(ros_domain, request):
+    """An rclpy node in this process, on the test's domain, spun in a background thread."""
+    with client_node(ros_domain, f"{request.module.__name__.split('.')[-1]}_node", spin=True) as (node, _):
+        yield node

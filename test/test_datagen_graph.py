@@ -10,7 +10,7 @@ from pathlib import Path
 import h5py
 import pytest
 
-from conftest import REPO, NodeProcess, next_domain_id, wait_for
+from conftest import REPO, NodeProcess, client_node, next_domain_id, wait_for
 from skillgen_ros.client import SkillGenClient
 from skillgen_ros.core.dataset.hdf5 import validate_dataset
 
@@ -126,18 +126,10 @@ def test_killed_perception_fails_attempts_with_a_reason_and_the_run_goes_on(grap
 
 
 def test_run_attempt_service_runs_one_attempt(graph, tmp_path):
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-
     from skillgen_interfaces.srv import RunAttempt
 
     dom, _, _ = graph
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=dom)
-    try:
-        node = rclpy.create_node("run_attempt_client", context=ctx)
-        ex = SingleThreadedExecutor(context=ctx)
-        ex.add_node(node)
+    with client_node(dom, "run_attempt_client") as (node, ex):
         cli = node.create_client(RunAttempt, "run_attempt")
         assert cli.wait_for_service(timeout_sec=30)
         bad = cli.call_async(RunAttempt.Request(task="Square", variant="D0", method="nope", index=0,
@@ -150,6 +142,3 @@ def test_run_attempt_service_runs_one_attempt(graph, tmp_path):
         r = fut.result()
         assert r.accepted and r.seconds > 0 and (r.success or r.reason != "OK"), r
         assert (tmp_path / "one" / "demo.hdf5").exists()
-        node.destroy_node()
-    finally:
-        rclpy.shutdown(context=ctx)

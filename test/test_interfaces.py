@@ -5,15 +5,13 @@ import time
 from pathlib import Path
 
 import pytest
-import rclpy
 from rclpy.action import ActionClient
-from rclpy.executors import SingleThreadedExecutor
 
 from skillgen_interfaces.action import Gripper
 from skillgen_interfaces.msg import OscTarget
 from skillgen_interfaces.srv import TaskSuccess
 
-from conftest import node_env
+from conftest import client_node, node_env
 
 HERE = Path(__file__).parent
 
@@ -30,12 +28,7 @@ def echo_process(ros_domain):
 
 
 def test_custom_interfaces_across_processes(echo_process, ros_domain):
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=ros_domain)
-    try:
-        node = rclpy.create_node("interface_client", context=ctx)
-        ex = SingleThreadedExecutor(context=ctx)
-        ex.add_node(node)
+    with client_node(ros_domain, "interface_client") as (node, ex):
         got = []
         node.create_subscription(OscTarget, "echo_out", got.append, 10)
         pub = node.create_publisher(OscTarget, "echo_in", 10)
@@ -71,6 +64,3 @@ def test_custom_interfaces_across_processes(echo_process, ros_domain):
         result = rfut.result().result
         assert result.reached_goal and result.width == pytest.approx(0.06)
         assert len(feedback) >= 1 and feedback[-1] == pytest.approx(0.06)
-        node.destroy_node()
-    finally:
-        rclpy.shutdown(context=ctx)

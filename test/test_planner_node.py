@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
 from rclpy.action import ActionServer
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
@@ -18,7 +17,7 @@ from skillgen_interfaces.msg import SceneObject
 from skillgen_interfaces.srv import PlanToPose
 from visualization_msgs.msg import MarkerArray
 
-from conftest import wait_for
+from conftest import client_node, wait_for
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.robot import ARM_JOINTS, Q_HOME
 from skillgen_ros.nodes import convert
@@ -31,16 +30,8 @@ LATCHED = QoSProfile(depth=1, reliability=QoSReliabilityPolicy.RELIABLE,
 @pytest.fixture
 def client(ros_domain, start_node):
     planner = start_node("planner", params=PARAMS)
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=ros_domain)
-    node = rclpy.create_node("planner_test", context=ctx)
-    ex = MultiThreadedExecutor(context=ctx)
-    ex.add_node(node)
-    threading.Thread(target=ex.spin, daemon=True).start()
-    yield node, planner
-    ex.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=ctx)
+    with client_node(ros_domain, "planner_test", MultiThreadedExecutor, spin=True) as (node, _):
+        yield node, planner
 
 
 def _cube(name, xyz, half):

@@ -15,7 +15,7 @@ from skillgen_ros.client import SkillGenClient
 from skillgen_ros.core.dataset.hdf5 import validate_dataset
 
 NODES = {
-    "sim_driver": ["-p", "cameras:=[front]", "-p", "camera_hz:=20.0"],
+    "sim_driver": ["-p", "cameras:=[front]", "-p", "camera_hz:=0.0"],  # as graphs.yaml: frames on demand
     "perception": [],
     "planner": [],
     "skill_replay": [],
@@ -79,8 +79,19 @@ def test_bad_requests_are_rejected_with_a_reason(graph, tmp_path):
     assert all(p.proc.poll() is None for p in procs.values()), "a node died on bad input"
 
 
+def _driver_camera_hz(dom: int) -> float:
+    from rclpy.parameter_client import AsyncParameterClient
+
+    with client_node(dom, "camera_hz_probe") as (node, ex):
+        cli = AsyncParameterClient(node, "sim_driver")
+        assert cli.wait_for_services(timeout_sec=30)
+        fut = cli.get_parameters(["camera_hz"])
+        ex.spin_until_future_complete(fut, timeout_sec=30)
+        return fut.result().values[0].double_value
+
+
 def test_seeded_attempts_produce_a_valid_robomimic_dataset(graph, tmp_path):
-    _, _, client = graph
+    dom, _, client = graph
     out = tmp_path / "run"
     res = _run(client, attempts=3, output_dir=str(out), record_bag=True, record_first=1, record_count=1)
     assert res.accepted and res.reason == "OK", res.message
@@ -91,6 +102,7 @@ def test_seeded_attempts_produce_a_valid_robomimic_dataset(graph, tmp_path):
         n = sum(1 for _ in r.messages(connections=[c for c in r.connections if c.topic == "/osc_target"]))
     assert 0 < n < 450, n  # one attempt's skill steps, not three
     assert (out / "attempts.mp4").stat().st_size > 0
+    assert _driver_camera_hz(dom) == 0.0, "datagen must put the driver's camera rate back after filming"
     assert res.attempts == 3 and res.successes >= 1, [(f.reason, f.count) for f in res.failures]
     summary = validate_dataset(res.dataset_path)
     assert summary.num_demos == res.successes
@@ -106,6 +118,14 @@ def test_seeded_attempts_produce_a_valid_robomimic_dataset(graph, tmp_path):
         assert demo["actions"].shape == (n, 7) and demo["labels/mp_step"][:].any() and not demo["labels/mp_step"][:].all()
         assert "successful" in f["mask"]
     assert Path(res.report_path).exists()
+
+
+def test_no_video_attempts_means_no_mp4(graph, tmp_path):
+    _, _, client = graph
+    out = tmp_path / "novideo"
+    res = _run(client, attempts=1, output_dir=str(out), video_attempts=0)
+    assert res.accepted and res.attempts == 1, res.message
+    assert not (out / "attempts.mp4").exists()
 
 
 def test_killed_perception_fails_attempts_with_a_reason_and_the_run_goes_on(graph, tmp_path):

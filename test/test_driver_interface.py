@@ -14,16 +14,18 @@ from skillgen_ros import rosenv  # noqa: F401
 
 import rclpy
 from rclpy.action import ActionClient, get_action_names_and_types
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
 from conftest import REPO
 from geometry_msgs.msg import Point, Pose as PoseMsg, PoseStamped, Quaternion
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import JointState, PointCloud2
 from std_msgs.msg import String
 from skillgen_interfaces.action import ExecuteTrajectory, Gripper
 from skillgen_interfaces.msg import ObjectPoseArray, OscTarget
-from skillgen_interfaces.srv import ResetScene, TaskSuccess
+from skillgen_interfaces.srv import CaptureCameras, ResetScene, TaskSuccess
 from skillgen_ros.core.robot import ARM_JOINTS, Q_HOME
 from skillgen_ros.nodes.convert import trajectory_to_msg
 
@@ -41,7 +43,8 @@ EXPECTED_TOPICS = {
         ("pose", "geometry_msgs/msg/PoseStamped"))},
 }
 EXPECTED_SERVICES = {"/reset_scene": "skillgen_interfaces/srv/ResetScene",
-                     "/task_success": "skillgen_interfaces/srv/TaskSuccess"}
+                     "/task_success": "skillgen_interfaces/srv/TaskSuccess",
+                     "/capture_cameras": "skillgen_interfaces/srv/CaptureCameras"}
 EXPECTED_ACTIONS = {"/execute_trajectory": "skillgen_interfaces/action/ExecuteTrajectory",
                     "/gripper_command": "skillgen_interfaces/action/Gripper"}
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -229,3 +232,59 @@ def test_mock_driver_starts_without_pybullet(start_node, ros_domain):
             "mock.MockWorld().reset('Square', 'D0', 0); print('pybullet' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
     assert out.stdout.strip() == "False", out.stdout + out.stderr
+
+
+def _stamp(t) -> float:
+    return t.sec + t.nanosec * 1e-9
+
+
+def test_capture_cameras_and_live_camera_rate(start_node, client):
+    """camera_hz 0: frames only on reset and on capture_cameras (stamped as the answer says);
+    camera_hz may be raised and lowered at run time; bad or read-only parameter changes are refused
+    with a reason; a driver without cameras answers NO_CAMERAS. The driver keeps running."""
+    proc = start_node("mock_driver", "--ros-args", "--params-file", str(REPO / "params" / "mock_driver.yaml"),
+                      "-p", "camera_hz:=0.0", "-p", "lockstep_timeout_s:=30.0")
+    clouds = []
+    client.node.create_subscription(PointCloud2, "camera/front/points", clouds.append, qos_profile_sensor_data)
+    capture = client.node.create_client(CaptureCameras, "capture_cameras")
+    params = AsyncParameterClient(client.node, "mock_driver")
+    assert client.spin_until(lambda: client.node.count_publishers("camera/front/points") > 0, 20.0)
+    assert capture.wait_for_service(timeout_sec=20.0) and params.wait_for_services(timeout_sec=20.0)
+    assert client.reset("Square", "D0", 0).success
+    assert client.spin_until(lambda: len(clouds) >= 1)  # the reset's frame
+    assert client.spin_until(lambda: "ee_pose" in client.last)
+    n = len(clouds)
+    for _ in range(4):
+        client.target(client.ee())
+    client.spin_until(lambda: False, 0.5)
+    assert len(clouds) == n, "camera_hz 0 must not publish periodic frames"
+
+    r = client.call(capture, CaptureCameras.Request())
+    assert r.success and r.reason_code == "OK"
+    assert client.spin_until(lambda: len(clouds) > n and _stamp(clouds[-1].header.stamp) == _stamp(r.stamp))
+
+    def set_param(name, value):
+        fut = params.set_parameters([Parameter(name, value=value)])
+        assert client.spin_until(fut.done)
+        return fut.result().results[0]
+
+    assert set_param("camera_hz", 20.0).successful
+    n = len(clouds)
+    for _ in range(3):
+        client.target(client.ee())
+    assert client.spin_until(lambda: len(clouds) >= n + 3), "camera_hz 20 at 20 Hz control: a frame per period"
+    bad = set_param("camera_hz", -1.0)
+    assert not bad.successful and "camera_hz" in bad.reason
+    ro = set_param("control_hz", 50.0)
+    assert not ro.successful and "read-only" in ro.reason
+    assert set_param("camera_hz", 0.0).successful
+    assert proc.proc.poll() is None, "driver died"
+
+
+def test_capture_without_cameras_says_so(start_node, client):
+    start_node("mock_driver", "--ros-args", "--params-file", str(REPO / "params" / "mock_driver.yaml"),
+               "-p", "cameras:=['']")
+    capture = client.node.create_client(CaptureCameras, "capture_cameras")
+    assert capture.wait_for_service(timeout_sec=20.0)
+    r = client.call(capture, CaptureCameras.Request())
+    assert not r.success and r.reason_code == "NO_CAMERAS"

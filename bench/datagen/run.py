@@ -96,7 +96,8 @@ def graph_overhead(attempts: int, seed: int) -> dict:
     with tempfile.TemporaryDirectory() as out:
         g = os.path.join(out, "g")
         cmd = [str(ROOT / ".venv" / "bin" / "skillgen"), "generate", "--task", "Square", "--variant", "D0",
-               "--attempts", str(attempts), "--seed", str(seed), "--output", g, "--no-bag"]
+               "--attempts", str(attempts), "--seed", str(seed), "--output", g, "--no-bag",
+               "--video-attempts", "0"]  # as the in-process cell: no MP4
         t0 = time.perf_counter()
         p = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=ROOT, timeout=3600)
         wall = time.perf_counter() - t0

@@ -1,9 +1,10 @@
 """`skillgen run` and `skillgen launch`: start package executables the way ros2 run/launch would.
 
 Executables are resolved through the ament index (<prefix>/lib/skillgen_ros/<exe>), exactly as
-`ros2 run` does, and every child gets the loopback-only ROS environment. `launch` starts a graph's
-nodes as separate processes, forwards Ctrl-C/SIGTERM to them, and if one dies on its own it names
-that node, stops the rest and exits non-zero.
+`ros2 run` does, and every child gets the loopback-only ROS environment and one math thread
+(rosenv.node_environment). `launch` starts a graph's nodes as separate processes, forwards
+Ctrl-C/SIGTERM to them, and if one dies on its own it names that node, stops the rest and exits
+non-zero.
 """
 from __future__ import annotations
 
@@ -37,14 +38,14 @@ def resolve_executable(exe: str) -> Path:
 
 def run(exe: str, args: list[str]) -> int:
     path = resolve_executable(exe)
-    env = rosenv.ros_environment(dict(os.environ))
+    env = rosenv.node_environment(dict(os.environ))
     os.execve(str(path), [str(path), *args], env)
     return 0  # not reached
 
 
 def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.1) -> int:
     nodes = load_graph(graph)
-    env = rosenv.ros_environment(dict(os.environ))
+    env = rosenv.node_environment(dict(os.environ))
     procs: list[tuple[str, subprocess.Popen]] = []
     stopping = {"flag": False}
 

@@ -7,7 +7,8 @@ The run loop, dataset, report and video are core code (core/generation/session.p
 maps the action goal onto a RunRequest, streams feedback (attempts, successes, rate, ETA) and can
 record the session through the recorder's services.
 
-Parameters (params/datagen.yaml): demos_dir, output_root, collision_source, record_topics and the
+Parameters (params/datagen.yaml): demos_dir, output_root, collision_source, action_noise,
+driver_node and video_camera_hz (the driver's camera rate while an attempt is filmed), and the
 per-call timeouts (timeout_reset, timeout_perception, timeout_plan, timeout_execute,
 timeout_skill, timeout_state).
 """
@@ -42,6 +43,8 @@ class DatagenNode(Node):
         self.declare_parameter("output_root", "out")
         self.declare_parameter("collision_source", "scene")
         self.declare_parameter("action_noise", 0.05)
+        self.declare_parameter("driver_node", "sim_driver")
+        self.declare_parameter("video_camera_hz", 10.0)
         for k, v in TIMEOUTS.items():
             self.declare_parameter(f"timeout_{k}", v)
         src = str(self.get_parameter("collision_source").value)
@@ -52,7 +55,9 @@ class DatagenNode(Node):
             raise ParameterError(f"timeouts must be > 0, got {timeouts}")
         self.env = RosGraphEnv(self, timeouts, demos_dir="",
                                collision_source=PlanToPose.Request.SOURCE_POINT_CLOUD if src == "point_cloud"
-                               else PlanToPose.Request.SOURCE_SCENE)
+                               else PlanToPose.Request.SOURCE_SCENE,
+                               driver_node=str(self.get_parameter("driver_node").value),
+                               video_camera_hz=float(self.get_parameter("video_camera_hz").value))
         self._busy = threading.Lock()
         cb = ReentrantCallbackGroup()
         self.rec_start = self.create_client(Recorder, "recorder/start", callback_group=cb)
@@ -76,7 +81,8 @@ class DatagenNode(Node):
                           augment_translation=float(g.augment_translation or 0.08),
                           augment_rotation_deg=float(g.augment_rotation_deg or 80.0),
                           action_noise=float(self.get_parameter("action_noise").value),
-                          selection=g.selection or "random", output_dir=out, source_demos=g.source_demos)
+                          selection=g.selection or "random", output_dir=out, source_demos=g.source_demos,
+                          **_video_attempts(g))
 
     def _demos(self, req: RunRequest):
         d = req.source_demos or str(Path(str(self.get_parameter("demos_dir").value)) / req.task)
@@ -193,6 +199,12 @@ class DatagenNode(Node):
         fut.add_done_callback(lambda _f: ev.set())
         ev.wait(timeout)
         return fut.result() if fut.done() else None
+
+
+def _video_attempts(g) -> dict:
+    """RunRequest's video_attempts from a goal's (-1 or absent: keep RunRequest's default)."""
+    n = int(getattr(g, "video_attempts", -1))
+    return {"video_attempts": n} if n >= 0 else {}
 
 
 def main(args=None) -> int:

@@ -21,7 +21,7 @@ import time
 from typing import Callable
 
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
@@ -35,7 +35,7 @@ from geometry_msgs.msg import PoseStamped
 
 from skillgen_interfaces.action import ExecuteTrajectory, Gripper
 from skillgen_interfaces.msg import GripperState, ObjectPose, ObjectPoseArray, OscTarget, SceneObject
-from skillgen_interfaces.srv import ResetScene, TaskSuccess
+from skillgen_interfaces.srv import CaptureCameras, ResetScene, TaskSuccess
 from skillgen_ros.core.errors import ParameterError, SkillGenError
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
@@ -50,7 +50,8 @@ PARAMS = {  # name: (default, description)
     "control_hz": (20.0, "control period rate (OSC targets, joint_states, ee_pose)"),
     "frame_id": ("world", "frame of every pose (the robot base is at its origin)"),
     "cameras": (["front", "wrist"], "cameras to render and publish"),
-    "camera_hz": (10.0, "camera publish rate (rounded to a divisor of control_hz); <= 0 turns cameras off"),
+    "camera_hz": (10.0, "periodic camera frames per (sim) second, rounded to a divisor of control_hz; 0 = none "
+                        "(frames still come on reset_scene and capture_cameras); may be changed at run time"),
     "front_width": (128, "front camera width (px)"), "front_height": (128, "front camera height (px)"),
     "front_fov_deg": (55.0, "front camera vertical field of view"),
     "wrist_width": (96, "wrist camera width (px)"), "wrist_height": (96, "wrist camera height (px)"),
@@ -92,8 +93,7 @@ class DriverNode(Node):
             raise ParameterError("lockstep_timeout_s must be > 0")
         self.frame = self.param("frame_id")
         self.camera_names = [c for c in self.param("cameras") if c]
-        cam_hz = float(self.param("camera_hz"))
-        self.camera_every = max(1, int(round(self.hz / cam_hz))) if cam_hz > 0 else 0  # 0: cameras off
+        self.camera_every = self._camera_every(self.param("camera_hz"))  # 0: no periodic frames
         self.world = make_world(self.param)
         self.lock = threading.RLock()
         self.period = 0
@@ -128,6 +128,7 @@ class DriverNode(Node):
                                  event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
         self.create_service(ResetScene, "reset_scene", self._on_reset, callback_group=cb)
         self.create_service(TaskSuccess, "task_success", self._on_success, callback_group=cb)
+        self.create_service(CaptureCameras, "capture_cameras", self._on_capture, callback_group=cb)
         self.traj_server = ActionServer(self, ExecuteTrajectory, "execute_trajectory", self._exec_traj,
                                         goal_callback=self._one_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT,
                                         callback_group=cb)
@@ -143,11 +144,38 @@ class DriverNode(Node):
                 self._types = {o.id: o.type for o in scene.objects}
             except SkillGenError as e:
                 raise ParameterError(f"initial scene: {e}")
-        self._publish(cameras=bool(self.camera_every), force=True)
+        self._publish(cameras=True, force=True)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(f"{name} up: {self.mode}, {self.hz:g} Hz, cameras {self.camera_names}")
 
     def param(self, name: str):
         return self.get_parameter(name).value
+
+    def _camera_every(self, camera_hz) -> int:
+        """Control periods per periodic camera frame (0: none); ParameterError if camera_hz is bad."""
+        hz = float(camera_hz)
+        if not hz >= 0 or hz == float("inf"):
+            raise ParameterError(f"camera_hz must be a finite value >= 0, got {camera_hz}")
+        return max(1, int(round(self.hz / hz))) if hz > 0 else 0
+
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        """camera_hz, lockstep_timeout_s, publish_points and feedback_hz apply at once (datagen
+        raises camera_hz while it films an attempt); the rest shape the world or the interface
+        at start-up, so changing them later is refused rather than silently ignored."""
+        live = {"camera_hz", "lockstep_timeout_s", "publish_points", "feedback_hz", "use_sim_time"}
+        for p in params:
+            if p.name not in live:
+                return SetParametersResult(successful=False, reason=f"{p.name} is read-only after start-up")
+            try:
+                if p.name == "camera_hz":
+                    every = self._camera_every(p.value)
+                elif p.name in ("lockstep_timeout_s", "feedback_hz") and not float(p.value) > 0:
+                    raise ParameterError(f"{p.name} must be > 0, got {p.value}")
+            except (ParameterError, TypeError, ValueError) as e:
+                return SetParametersResult(successful=False, reason=str(e))
+            if p.name == "camera_hz":
+                self.camera_every = every
+        return SetParametersResult(successful=True)
 
     # ----------------------------------------------------------------- stepping
     def _stamp(self) -> Time:
@@ -228,7 +256,7 @@ class DriverNode(Node):
                 for oid, p in w.object_poses().items()]))
         if cameras:
             for n in self.camera_names:
-                if wanted(*self.cam_pubs[n].values()):
+                if any(p.get_subscription_count() for p in self.cam_pubs[n].values()):  # not forced: no latch
                     self._publish_camera(n, stamp)
 
     def _publish_camera(self, name: str, stamp: Time) -> None:
@@ -260,7 +288,7 @@ class DriverNode(Node):
                 scene = self.world.reset(req.task, req.variant, int(req.seed))
                 self._clock_base = base  # the reset state is stamped after everything before it
                 self._types = {o.id: o.type for o in scene.objects}
-                self._publish(cameras=bool(self.camera_every), force=True)
+                self._publish(cameras=True, force=True)
                 reset_stamp = self._stamp()
         except SkillGenError as e:
             res.success, res.reason_code, res.message = False, e.reason, str(e)
@@ -274,6 +302,22 @@ class DriverNode(Node):
                                    has_pose=True, pose=convert.pose_to_msg(scene.poses[o.id]), is_fixture=o.is_fixture)
                        for o in scene.objects]
         res.joint_state = convert.joint_state(ARM_JOINTS, scene.joint_positions, stamp=reset_stamp)
+        return res
+
+    def _on_capture(self, _req: CaptureCameras.Request, res: CaptureCameras.Response) -> CaptureCameras.Response:
+        if not self.camera_names:
+            res.success, res.reason_code, res.message = False, "NO_CAMERAS", "parameter cameras is empty"
+            return res
+        try:
+            with self.lock:
+                stamp = self._stamp()
+                for n in self.camera_names:
+                    self._publish_camera(n, stamp)
+        except Exception as e:  # noqa: BLE001 - report, keep serving
+            res.success, res.reason_code, res.message = False, "INTERNAL_ERROR", repr(e)
+            return res
+        res.success, res.reason_code, res.stamp = True, "OK", stamp
+        res.message = f"captured {', '.join(self.camera_names)}"
         return res
 
     def _on_success(self, req: TaskSuccess.Request, res: TaskSuccess.Response) -> TaskSuccess.Response:

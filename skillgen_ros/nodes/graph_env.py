@@ -3,7 +3,12 @@
 Algorithm 1 (core/generation/attempt.py) calls these methods; each maps to one interface:
 reset -> `reset_scene`, estimate_poses -> `estimate_poses`, plan_and_execute -> `plan_to_pose`
 (execute=true: the planner runs the trajectory on the driver), replay_skill -> the `replay_skill`
-action, task_success -> `task_success`. Observations come from `joint_states` alone (arm and
+action, task_success -> `task_success`. Before estimating poses in a state the robot has moved to,
+it asks the driver for fresh camera frames (`capture_cameras`) and has perception use a cloud no
+older than them, as SimGenerationEnv renders at that moment; a reset's own frames serve the first
+estimate. While filming an attempt for the MP4 it raises the driver's `camera_hz` (a parameter
+set on `driver_node`), so outside those attempts the driver renders nothing periodically.
+Observations come from `joint_states` alone (arm and
 finger joints; the EE pose is FK through pinocchio, within 1e-8 m of the driver's `ee_pose`),
 read on demand (nodes/latest.py) so that the driver's hundreds of periods a second in lockstep do
 not wake this node; object poses in observations are the latest estimates (never ground truth).
@@ -21,13 +26,15 @@ import numpy as np
 from rclpy.action import ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import String
 
 from skillgen_interfaces.action import ReplaySkill
 from skillgen_interfaces.msg import OscTarget, SceneObject
-from skillgen_interfaces.srv import EstimatePoses, PlanToPose, ResetScene, TaskSuccess
+from skillgen_interfaces.srv import CaptureCameras, EstimatePoses, PlanToPose, ResetScene, TaskSuccess
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
 from skillgen_ros.core.generation.grasp import GraspTracker, grasp_step
@@ -35,7 +42,7 @@ from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
 from skillgen_ros.nodes import convert
-from skillgen_ros.nodes.latest import LatestMessage
+from skillgen_ros.nodes.latest import LatestMessage, wait_future
 
 
 class GraphCallError(SkillGenError):
@@ -46,7 +53,8 @@ class RosGraphEnv:
     """Implements attempt.GenerationEnv (+ the optional replay_skill hook) with ROS clients on `node`."""
 
     def __init__(self, node: Node, timeouts: dict, demos_dir: str = "", action_noise: float = 0.05,
-                 collision_source: int = PlanToPose.Request.SOURCE_POINT_CLOUD, control_hz: float = 20.0):
+                 collision_source: int = PlanToPose.Request.SOURCE_POINT_CLOUD, control_hz: float = 20.0,
+                 driver_node: str = "sim_driver", video_camera_hz: float = 10.0):
         self.node = node
         self.t = dict(timeouts)
         self.demos_dir = demos_dir
@@ -58,6 +66,10 @@ class RosGraphEnv:
         self.estimate_cli = node.create_client(EstimatePoses, "estimate_poses", callback_group=group)
         self.plan_cli = node.create_client(PlanToPose, "plan_to_pose", callback_group=group)
         self.replay_ac = ActionClient(node, ReplaySkill, "replay_skill", callback_group=group)
+        self.capture_cli = node.create_client(CaptureCameras, "capture_cameras", callback_group=group)
+        self._driver_params = AsyncParameterClient(node, driver_node, callback_group=group) if driver_node else None
+        self._video_hz = float(video_camera_hz)
+        self._camera_hz_before: float | None = None
         self._lock = threading.RLock()
         self.osc_pub = node.create_publisher(OscTarget, "osc_target", 10)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -70,8 +82,10 @@ class RosGraphEnv:
         self._frames: list | None = None
         self.kin = PandaKinematics()
         self.task = ""
+        self._task_sent = ""
         self.scene_objects = []
-        self._reset_stamp = None
+        self._cloud_floor = None  # perception must use a cloud stamped at or after this
+        self._moved = False  # the robot moved since _cloud_floor's frames were taken
         self._estimates: dict[str, Pose] = {}
         self._skill_object: str | None = None
         self.grasps = GraspTracker()
@@ -98,10 +112,30 @@ class RosGraphEnv:
     # -- video of a few attempts (session.run_generation calls these)
     def start_capture(self) -> None:
         self._frames = []
+        self._camera_hz_before = self._set_camera_hz(self._video_hz)
 
     def stop_capture(self) -> list:
         frames, self._frames = self._frames or [], None
+        if self._camera_hz_before is not None:
+            self._set_camera_hz(self._camera_hz_before)
+            self._camera_hz_before = None
         return frames
+
+    def _set_camera_hz(self, hz: float) -> float | None:
+        """Set the driver's camera_hz; returns the value it had, or None if that failed (the MP4 is
+        an aid: a driver without the parameter gives a video of whatever frames come)."""
+        cli = self._driver_params
+        if cli is None or not cli.wait_for_services(timeout_sec=2.0):
+            return None
+        got = cli.get_parameters(["camera_hz"])
+        if not wait_future(got, 2.0) or got.result() is None or not got.result().values:
+            return None
+        before = got.result().values[0].double_value
+        done = cli.set_parameters([Parameter("camera_hz", value=float(hz))])
+        if not wait_future(done, 2.0) or done.result() is None or not all(r.successful for r in done.result().results):
+            self.node.get_logger().warning(f"could not set {cli.remote_node_name}.camera_hz for the video")
+            return None
+        return before
 
     # -- plumbing
     def _call(self, client, request, timeout: float, what: str, reason: str, idempotent: bool = True):
@@ -113,7 +147,7 @@ class RosGraphEnv:
         waits = [min(5.0, timeout / 2), timeout - min(5.0, timeout / 2)] if idempotent else [timeout]
         for wait in waits:
             fut = client.call_async(request)
-            if _wait_future(fut, wait):
+            if wait_future(fut, wait):
                 if fut.exception() is not None:
                     raise GraphCallError(f"{what}: {fut.exception()}", reason=reason)
                 return fut.result()
@@ -134,8 +168,11 @@ class RosGraphEnv:
             raise SkillGenError(f"reset_scene: {resp.message}", reason=resp.reason_code or "RESET_FAILED")
         self.task = task
         self.scene_objects = list(resp.objects)
-        self._reset_stamp = resp.joint_state.header.stamp  # perception must use a cloud from now on
-        self.task_pub.publish(String(data=f"{task}/{variant}"))
+        self._cloud_floor = resp.joint_state.header.stamp  # the reset published frames of this state
+        self._moved = False
+        if task != self._task_sent:  # latched: perception keeps it (and builds its models once)
+            self.task_pub.publish(String(data=task))
+            self._task_sent = task
         self._estimates = {}
         self.grasps.clear()
         if not self.wait_for_state(self.t["state"], after=count):
@@ -174,23 +211,36 @@ class RosGraphEnv:
         self.step(Pose.from_array(obs.ee_pose), g)
 
     def estimate_poses(self) -> dict[str, Pose]:
-        # No cloud yet (perception's camera subscription matched after the last frame, e.g. right
-        # after start-up): hold the pose for a few periods, so the driver renders again, and retry.
+        if self._moved:
+            self._capture()
+        # No cloud (perception's camera subscription matched after the last frame, e.g. right after
+        # start-up): take new frames and retry until the perception budget is spent.
         end = time.monotonic() + self.t["perception"]
         while True:
             resp = self._estimate_once()
             if resp.status != EstimatePoses.Response.NO_DATA or time.monotonic() > end:
                 break
-            for _ in range(3):
-                self._hold_period()
+            self._capture()
             time.sleep(0.05)
         return self._take_estimates(resp)
+
+    def _capture(self) -> None:
+        """Frames of the current state (the driver's capture_cameras); a driver without the
+        service (a real camera streams anyway) gets a few hold periods instead."""
+        if self.capture_cli.service_is_ready():
+            resp = self._call(self.capture_cli, CaptureCameras.Request(), self.t["perception"], "capture_cameras",
+                              "PERCEPTION_FAILED")
+            if resp.success:
+                self._cloud_floor, self._moved = resp.stamp, False
+                return
+        for _ in range(3):
+            self._hold_period()
 
     def _estimate_once(self):
         held = self.grasps.holding()  # in the hand: occluded, tracked instead
         req = EstimatePoses.Request(object_ids=[o.id for o in self.scene_objects if o.id not in (held, "obstacle")])
-        if self._reset_stamp is not None:
-            req.newer_than = self._reset_stamp
+        if self._cloud_floor is not None:
+            req.newer_than = self._cloud_floor
         return self._call(self.estimate_cli, req, self.t["perception"], "estimate_poses", "PERCEPTION_FAILED")
 
     def _take_estimates(self, resp) -> dict[str, Pose]:
@@ -238,6 +288,7 @@ class RosGraphEnv:
         req.collision_source = self.collision_source
         req.timeout = float(self.t["plan"])
         req.execute = True
+        self._moved = True
         req.start_positions = [float(v) for v in self.current_q()]
         req.objects = self._scene_for_planner()
         req.manipulated_object = self._skill_object or ""
@@ -266,6 +317,7 @@ class RosGraphEnv:
                                 source_demos=self.demos_dir, task=self.task, selection="random",
                                 action_noise=float(sigma), recovery=bool(recovery), seed=int(seed))
         goal.object_pose = convert.pose_to_msg(Pose.from_matrix(T_W_O))
+        self._moved = True
         result = self._wait_action(self.replay_ac.send_goal_async(goal), self.t["skill"])
         r = result.result
         n = int(r.steps)
@@ -292,13 +344,13 @@ class RosGraphEnv:
 
     def _wait_action(self, send_future, timeout: float):
         end = time.monotonic() + timeout
-        if not _wait_future(send_future, timeout):
+        if not wait_future(send_future, timeout):
             raise GraphCallError("replay_skill goal was not answered", reason="SKILL_FAILED")
         handle = send_future.result()
         if not handle.accepted:
             raise GraphCallError("replay_skill goal rejected (busy?)", reason="SKILL_FAILED")
         rf = handle.get_result_async()
-        if not _wait_future(rf, max(0.0, end - time.monotonic())):
+        if not wait_future(rf, max(0.0, end - time.monotonic())):
             handle.cancel_goal_async()
             raise GraphCallError(f"replay_skill did not finish within {timeout:.0f} s", reason="TIMEOUT")
         return rf.result()
@@ -311,6 +363,7 @@ class RosGraphEnv:
         msg.header.stamp = self.node.get_clock().now().to_msg()
         msg.pose = convert.pose_to_msg(target)
         msg.gripper = float(gripper)
+        self._moved = True
         self.osc_pub.publish(msg)
         if not self.wait_for_state(self.t["state"], after=count):
             raise GraphCallError("driver did not step after an osc_target", reason="TIMEOUT")
@@ -323,9 +376,3 @@ class RosGraphEnv:
     def collided(self) -> bool:
         return False  # the planner's EXECUTION_FAILED status carries execution problems
 
-
-def _wait_future(fut, timeout: float) -> bool:
-    """Block this (non-executor) thread until an rclpy future is done; False on timeout."""
-    done = threading.Event()
-    fut.add_done_callback(lambda _f: done.set())
-    return done.wait(timeout)

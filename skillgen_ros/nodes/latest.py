@@ -7,6 +7,9 @@ woken for every message: in lockstep the driver publishes hundreds of periods a 
 middleware retains the newest sample, and `latest()` / `wait_newer()` take it on demand from the
 caller's thread. Topic names resolve in the owner's namespace, and global remaps apply, as for
 any subscription of the owner.
+
+`wait_future` is the same idea for an rclpy future (a service answer, an action result): a worker
+thread blocks on it while the executor's threads complete it.
 """
 from __future__ import annotations
 
@@ -71,3 +74,11 @@ class LatestMessage:
     def destroy(self) -> None:
         self._exec.shutdown()
         self._node.destroy_node()
+
+
+def wait_future(fut, timeout: float) -> bool:
+    """Block the calling (non-executor) thread until an rclpy future is done; False on timeout.
+    An event, not polling: the answer is seen the moment the executor sets it."""
+    done = threading.Event()
+    fut.add_done_callback(lambda _f: done.set())
+    return done.wait(timeout)

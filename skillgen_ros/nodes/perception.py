@@ -79,6 +79,7 @@ class PerceptionNode(Node):
         self._lock = threading.Lock()
         self._truth: ObjectPoseArray | None = None
         self._models: dict = {}
+        self._model_cache: dict[str, dict] = {}  # task -> its object models
         self._task = ""
         self._read_params()
         self.add_on_set_parameters_callback(self._on_params)
@@ -139,12 +140,19 @@ class PerceptionNode(Node):
                 return SetParametersResult(successful=False, reason=f"{p.name} is read at start-up; restart to change it")
         return SetParametersResult(successful=True)
 
-    def _set_task(self, name: str) -> None:
+    def _set_task(self, name: str) -> bool:
+        """Switch to the task's object models; False if it already was the task. Models are built
+        once per task (sampling the meshes takes a fraction of a second, and datagen names the task
+        when a run starts)."""
         from skillgen_ros.core.tasks import get_task  # task suite: pure, no pybullet
         task = name.split("/")[0].strip()
-        models = models_for_objects(get_task(task).objects) if task else {}
+        if task == self._task:
+            return False
+        if task not in self._model_cache:
+            self._model_cache[task] = models_for_objects(get_task(task).objects) if task else {}
         with self._lock:
-            self._task, self._models = task, models
+            self._task, self._models = task, self._model_cache[task]
+        return True
 
     # ------------------------------------------------------------------ inputs
     def _age(self, msg) -> float:
@@ -159,8 +167,8 @@ class PerceptionNode(Node):
 
     def _on_set_task(self, msg: String) -> None:
         try:
-            self._set_task(msg.data)
-            self.get_logger().info(f"task set to {self._task!r}")
+            if self._set_task(msg.data):
+                self.get_logger().info(f"task set to {self._task!r}")
         except SkillGenError as e:
             self.get_logger().error(f"perception/set_task: {e}")
 

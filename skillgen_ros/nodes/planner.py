@@ -54,7 +54,7 @@ from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.planning.planner import Mode, MotionPlanner, PlanStatus
 from skillgen_ros.core.robot import ARM_JOINTS
 from skillgen_ros.nodes import convert
-from skillgen_ros.nodes.latest import LatestMessage
+from skillgen_ros.nodes.latest import LatestMessage, wait_future
 from skillgen_ros.nodes.runtime import run_node
 
 WORLD_FRAMES = ("", "world", "panda_link0")
@@ -231,6 +231,8 @@ class PlannerNode(Node):
 
     # -- output ------------------------------------------------------------------------------
     def _publish_markers(self, result):
+        if not self.markers.get_subscription_count():
+            return  # FK of every point and a few hundred Point messages per plan, for nobody
         stamp = self.get_clock().now().to_msg()
         ee = self.kin.fk_batch(result.trajectory.positions)[:, :3, 3]
         colours = {"retreat": (1.0, 0.6, 0.0), "transit": (0.1, 0.6, 1.0),
@@ -261,10 +263,10 @@ class PlannerNode(Node):
             return False, "execute_trajectory action server not available"
         goal = ExecuteTrajectory.Goal(trajectory=traj_msg)
         fut = self.exec_client.send_goal_async(goal)
-        if not _wait(fut, 5.0) or not fut.result().accepted:
+        if not wait_future(fut, 5.0) or not fut.result().accepted:
             return False, "execute_trajectory goal rejected"
         res_fut = fut.result().get_result_async()
-        if not _wait(res_fut, self.p["execute_timeout"]):
+        if not wait_future(res_fut, self.p["execute_timeout"]):
             return False, "execute_trajectory timed out"
         r = res_fut.result().result
         if r.error_code != ExecuteTrajectory.Result.SUCCESSFUL:
@@ -274,13 +276,6 @@ class PlannerNode(Node):
 
 def _timing(phase: str, seconds: float) -> PhaseTiming:
     return PhaseTiming(phase=phase, seconds=float(seconds))
-
-
-def _wait(fut, timeout: float) -> bool:
-    end = time.monotonic() + timeout
-    while not fut.done() and time.monotonic() < end:
-        time.sleep(0.005)
-    return fut.done()
 
 
 def _containing(boxes: dict[str, Box], point, pad: float = 0.02) -> str | None:

@@ -5,13 +5,16 @@ transforms the skill segment into the current object frame (T_W^A' = T_W^O' T_O^
 absolute target into a normalized delta-pose action from the current EE pose with
 N(0,1)*action_noise on the pose dims (gripper copied), and streams the commanded pose as
 `osc_target`, one per control period: after each command it waits for the driver's next
-`ee_pose` (a newer stamp), which in lockstep mode is exactly one sim step and in real-time mode
-one controller period. Feedback every step (at most feedback_hz per wall second: every step in real
-time, rate-limited in lockstep); the result carries every executed step so datagen
+`joint_states`, which in lockstep mode is exactly one sim step and in real-time mode one
+controller period. The current EE pose is forward kinematics (pinocchio) of those joints, as
+robot_state_publisher would give it: one topic closes the loop, so the driver sends one message
+per period to this node instead of two (every reader of a topic costs the publisher a delivery).
+Feedback every step (at most feedback_hz per wall second: every step in real time, rate-limited in
+lockstep); the result carries every executed step, so datagen
 can write the dataset.
 
 The step loop is the graph's hot path (one round trip per control period), so the node runs on a
-SingleThreadedExecutor and the action is a coroutine that awaits the next ee_pose: no thread
+SingleThreadedExecutor and the action is a coroutine that awaits the next joint state: no thread
 pool, no busy wait set (a MultiThreadedExecutor spun a whole core here while a goal blocked).
 
 Parameters (params/skill_replay.yaml): demos_dir, action_noise, step_timeout, frame_id, feedback_hz.
@@ -23,7 +26,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.node import Node
 from rclpy.task import Future
@@ -34,6 +36,8 @@ from skillgen_interfaces.msg import OscTarget
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.geometry import Pose, validate_pose
 from skillgen_ros.core.generation.selection import make_strategy
+from skillgen_ros.core.planning.kinematics import PandaKinematics
+from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
 from skillgen_ros.core.skills.actions import make_action
 from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
 from skillgen_ros.core.skills.replay import plan_replay
@@ -53,13 +57,12 @@ class SkillReplayNode(Node):
         self.declare_parameter("frame_id", "world")
         self.declare_parameter("feedback_hz", 20.0)
         self._demos: dict[tuple[str, str], list] = {}
-        self._ee: PoseStamped | None = None
-        self._ee_count = 0
-        self._waiter: tuple[int, Future] | None = None  # (ee count to exceed, future the goal awaits)
+        self._kin = PandaKinematics()
+        self._state: JointState | None = None  # newest joint_states with every arm joint
+        self._state_count = 0
+        self._index: tuple[tuple, list[int], list[int]] | None = None  # (names, arm idx, finger idx)
+        self._waiter: tuple[int, Future] | None = None  # (state count to exceed, future the goal awaits)
         self._deadline = float("inf")
-        self._q = np.zeros(7)
-        self._width = 0.0
-        self.create_subscription(PoseStamped, "ee_pose", self._on_ee, 10)
         self.create_subscription(JointState, "joint_states", self._on_joints, 10)  # arm + fingers
         self.osc_pub = self.create_publisher(OscTarget, "osc_target", 10)
         self._busy = False
@@ -68,11 +71,24 @@ class SkillReplayNode(Node):
         self.create_timer(0.1, self._on_watchdog)
 
     # -- state (all callbacks run on the one executor thread: no locks)
-    def _on_ee(self, msg: PoseStamped):
-        self._ee = msg
-        self._ee_count += 1
-        if self._waiter is not None and self._ee_count > self._waiter[0]:
+    def _on_joints(self, msg: JointState):
+        names = tuple(msg.name)
+        if self._index is None or self._index[0] != names:
+            pos = {n: i for i, n in enumerate(names)}
+            if not all(j in pos for j in ARM_JOINTS):
+                return  # e.g. a gripper-only joint_states: not a robot state
+            self._index = (names, [pos[j] for j in ARM_JOINTS], [pos[j] for j in FINGER_JOINTS if j in pos])
+        self._state = msg
+        self._state_count += 1
+        if self._waiter is not None and self._state_count > self._waiter[0]:
             self._resolve(msg)
+
+    def _unpack(self, msg: JointState) -> tuple[np.ndarray, float, np.ndarray]:
+        """(arm q, gripper width, T_W_EE by FK) of a joint_states message _on_joints accepted."""
+        _names, arm, fingers = self._index
+        q = np.array([msg.position[i] for i in arm])
+        width = float(sum(msg.position[i] for i in fingers)) if len(fingers) == 2 else 0.0  # half widths
+        return q, width, self._kin.fk(q)
 
     def _resolve(self, value) -> None:
         _after, fut = self._waiter
@@ -84,16 +100,10 @@ class SkillReplayNode(Node):
         if self._waiter is not None and time.monotonic() > self._deadline:
             self._resolve(None)
 
-    def _on_joints(self, msg: JointState):
-        if len(msg.position) >= 7:
-            self._q = np.array(msg.position[:7])
-        if len(msg.position) >= 9:
-            self._width = float(msg.position[7] + msg.position[8])  # finger joints: half widths
-
-    async def _wait_ee(self, after: int, timeout: float) -> PoseStamped | None:
-        """The first ee_pose after the `after`-th one, or None after `timeout` s (watchdog)."""
-        if self._ee_count > after:
-            return self._ee
+    async def _wait_state(self, after: int, timeout: float) -> JointState | None:
+        """The first joint state after the `after`-th one, or None after `timeout` s (watchdog)."""
+        if self._state_count > after:
+            return self._state
         fut = Future()
         self._waiter, self._deadline = (after, fut), time.monotonic() + timeout
         return await fut
@@ -150,12 +160,13 @@ class SkillReplayNode(Node):
         timeout = float(self.get_parameter("step_timeout").value)
         frame = str(self.get_parameter("frame_id").value)
         feedback = FeedbackThrottle(float(self.get_parameter("feedback_hz").value))
-        ee = self._ee
-        if ee is None:
-            ee = await self._wait_ee(0, timeout)
-            if ee is None:
-                return finish(False, "TIMEOUT", "no ee_pose from the driver")
-        plan = plan_replay(seg, T_W_O, convert.pose_from_msg(ee.pose).matrix(), recovery=bool(g.recovery))
+        state = self._state
+        if state is None:
+            state = await self._wait_state(0, timeout)
+            if state is None:
+                return finish(False, "TIMEOUT", "no joint_states from the driver")
+        q, width, current = self._unpack(state)
+        plan = plan_replay(seg, T_W_O, current, recovery=bool(g.recovery))
         actions, abs_, ees, qs, widths = [], [], [], [], []
         n = len(plan.targets)
         for k in range(n):
@@ -163,8 +174,7 @@ class SkillReplayNode(Node):
                 goal_handle.canceled()
                 res.reason, res.message = "CANCELED", f"canceled at step {k}"
                 return res
-            count, ee = self._ee_count, self._ee
-            current = convert.pose_from_msg(ee.pose).matrix()
+            count = self._state_count
             noise = 0.0 if plan.recovery[k] else sigma
             a, commanded = make_action(plan.targets[k], current, float(plan.gripper[k]), noise, rng)
             msg = OscTarget()
@@ -175,12 +185,14 @@ class SkillReplayNode(Node):
             actions.append(a)
             abs_.append(np.concatenate([matrix_to_array(commanded), [plan.gripper[k]]]))
             ees.append(matrix_to_array(current))
-            qs.append(self._q.copy())
-            widths.append(self._width)
+            qs.append(q)
+            widths.append(width)
             self.osc_pub.publish(msg)
-            if await self._wait_ee(count, timeout) is None:
+            state = await self._wait_state(count, timeout)
+            if state is None:
                 self._fill(res, actions, abs_, ees, qs, widths, plan.recovery[:k + 1])
                 return finish(False, "TIMEOUT", f"driver did not step within {timeout} s at step {k}")
+            q, width, current = self._unpack(state)
             if feedback.due(k == n - 1):
                 goal_handle.publish_feedback(ReplaySkill.Feedback(
                     step=k + 1, total_steps=n, stage="recovery" if plan.recovery[k] else "skill"))

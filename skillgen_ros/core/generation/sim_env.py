@@ -36,9 +36,9 @@ class SimEnvConfig:
     plan_timeout: float = 2.0
     images: bool = False  # record 84x84 front and wrist RGB in observations
     image_size: int = 84
-    camera_width: int = 320  # perception camera resolution (estimate mode / cloud collisions)
-    camera_height: int = 240
-    depth_noise: float = 0.001
+    camera_width: int = 128  # perception camera (estimate mode / cloud collisions): params/sim_driver.yaml's
+    camera_height: int = 128  # front camera, and the datagen graph's depth noise, so the graph and this env
+    depth_noise: float = 0.001  # estimate from the same clouds
     video: bool = True  # front view for the run's MP4 (160x120 unless perception renders it; only while capturing)
     seed: int = 0
 

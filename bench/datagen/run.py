@@ -4,6 +4,8 @@ Rerun (full protocol, hours on 2 cores):
     .venv/bin/python bench/datagen/run.py --attempts 200 --workers 2
 Quick look (minutes):
     .venv/bin/python bench/datagen/run.py --quick
+One part again, updating the JSON in place (e.g. the graph overhead: 3 pairs of 50 attempts):
+    .venv/bin/python bench/datagen/run.py --only graph_overhead
 
 Success cells run in-process (SimGenerationEnv: the same Algorithm 1, dataset writer and seeds as
 the datagen node) with fixed seeds; the graph-overhead cell runs the same attempts through the
@@ -82,15 +84,12 @@ def _attempt_seconds(out_dir: str) -> list[float]:
     return secs
 
 
-def graph_overhead(attempts: int, seed: int) -> dict:
-    """The same attempts (Square D0 skillgen, estimated poses) through the ROS graph and in-process.
-
-    Time per attempt excludes graph start-up: both sides report the attempts' own wall time."""
+def _graph_run(attempts: int, seed: int) -> dict:
+    """`skillgen generate` through the datagen graph; time per attempt from the attempts' own records."""
     import subprocess
 
     from skillgen_ros import rosenv
 
-    inproc = run_cell("Square", "D0", "skillgen", False, attempts, seed, "estimate")
     env = rosenv.ros_environment(dict(os.environ))
     env.setdefault("ROS_DOMAIN_ID", "77")
     with tempfile.TemporaryDirectory() as out:
@@ -103,12 +102,43 @@ def graph_overhead(attempts: int, seed: int) -> dict:
         wall = time.perf_counter() - t0
         secs = _attempt_seconds(g)
     ok = p.returncode == 0 and len(secs) == attempts
-    graph_spa = sum(secs) / len(secs) if secs else None
-    return {"attempts": attempts, "perception": "estimate", "in_process_seconds_per_attempt": inproc["seconds_per_attempt"],
-            "in_process_rate": inproc["rate"], "graph_seconds_per_attempt": graph_spa,
-            "ratio_graph_to_in_process": graph_spa / inproc["seconds_per_attempt"] if ok and graph_spa else None,
-            "graph_wall_with_startup_s": wall, "graph_exit": p.returncode,
-            "graph_tail": (p.stdout[-600:] + p.stderr[-600:]) if not ok else p.stdout[-300:]}
+    return {"ok": ok, "seconds_per_attempt": sum(secs) / len(secs) if secs else None, "wall_with_startup_s": wall,
+            "exit": p.returncode, "tail": (p.stdout[-600:] + p.stderr[-600:]) if not ok else p.stdout[-300:]}
+
+
+def graph_overhead(attempts: int, seed: int, repeats: int = 3) -> dict:
+    """The same attempts (Square D0 skillgen, estimated poses) through the ROS graph and in-process,
+    `repeats` back-to-back pairs; the ratio is the median of the pairs' ratios (the VM's speed
+    drifts by tens of percent over minutes, so only same-time pairs compare).
+
+    Time per attempt excludes graph start-up: both sides report the attempts' own wall time."""
+    pairs = []
+    for _ in range(repeats):
+        inproc = run_cell("Square", "D0", "skillgen", False, attempts, seed, "estimate")
+        graph = _graph_run(attempts, seed)
+        ratio = (graph["seconds_per_attempt"] / inproc["seconds_per_attempt"]
+                 if graph["ok"] and graph["seconds_per_attempt"] else None)
+        pairs.append({"in_process_seconds_per_attempt": inproc["seconds_per_attempt"], "in_process_rate": inproc["rate"],
+                      "graph_seconds_per_attempt": graph["seconds_per_attempt"], "ratio": ratio,
+                      "graph_wall_with_startup_s": graph["wall_with_startup_s"], "graph_exit": graph["exit"],
+                      "graph_tail": graph["tail"]})
+    ratios = sorted(p["ratio"] for p in pairs if p["ratio"] is not None)
+    med = ratios[len(ratios) // 2] if ratios else None
+    return {"attempts": attempts, "repeats": repeats, "perception": "estimate",
+            "ratio_graph_to_in_process": med, "ratios": ratios, "pairs": pairs,
+            "in_process_seconds_per_attempt": sorted(p["in_process_seconds_per_attempt"] for p in pairs)[len(pairs) // 2],
+            "graph_seconds_per_attempt": sorted(p["graph_seconds_per_attempt"] or float("inf") for p in pairs)[len(pairs) // 2]}
+
+
+EXTRAS = {  # name -> (attempts, seed, perception) -> result; re-measured alone with --only NAME
+    "throughput_lowdim": lambda n, seed, perc: run_cell("Square", "D0", "skillgen", False, n, seed + 1, perc),
+    "throughput_images": lambda n, seed, perc: run_cell("Square", "D0", "skillgen", False, max(3, n // 4), seed + 1,
+                                                        perc, images=True),
+    "perception_estimate": lambda n, seed, perc: run_cell("Square", "D1", "skillgen", False, n, seed + 2, "estimate"),
+    "perception_ground_truth": lambda n, seed, perc: run_cell("Square", "D1", "skillgen", False, n, seed + 2,
+                                                              "ground_truth"),
+    "graph_overhead": lambda n, seed, perc: graph_overhead(max(3, n // 4), seed + 3),
+}
 
 
 def main(argv=None) -> int:
@@ -121,15 +151,17 @@ def main(argv=None) -> int:
     ap.add_argument("--tasks", nargs="*", default=list(CELLS_FULL))
     ap.add_argument("--skip-graph", action="store_true")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "datagen.json"))
-    ap.add_argument("--only-graph", type=int, default=0, metavar="N",
-                    help="only (re)measure the graph overhead with N attempts and update the JSON in place")
+    ap.add_argument("--only", nargs="+", default=[], choices=sorted(EXTRAS), metavar="PART",
+                    help=f"only (re)measure these of {sorted(EXTRAS)} and update the JSON in place")
     a = ap.parse_args(argv)
-    if a.only_graph:
+    n = 10 if a.quick else a.attempts
+    if a.only:
         out = json.loads(Path(a.out).read_text()) if Path(a.out).exists() else {"benchmark": "datagen"}
-        out["graph_overhead"] = graph_overhead(a.only_graph, a.seed + 3)
-        out["graph_overhead"]["rerun"] = f"python bench/datagen/run.py --only-graph {a.only_graph}"
+        for part in a.only:
+            out[part] = EXTRAS[part](n, a.seed, a.perception)
+            out[part]["rerun"] = " ".join(["python", "bench/datagen/run.py", *sys.argv[1:]])
+            print(part, json.dumps({k: v for k, v in out[part].items() if k != "pairs"}, indent=2))
         Path(a.out).write_text(json.dumps(out, indent=2))
-        print(json.dumps(out["graph_overhead"], indent=2))
         return 0
     n = 10 if a.quick else a.attempts
     jobs = []
@@ -143,15 +175,7 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=a.workers) as pool:
         cells = list(pool.map(_star, jobs))
-    extra = {
-        "throughput_lowdim": run_cell("Square", "D0", "skillgen", False, n, a.seed + 1, a.perception),
-        "throughput_images": run_cell("Square", "D0", "skillgen", False, max(3, n // 4), a.seed + 1, a.perception,
-                                      images=True),
-        "perception_estimate": run_cell("Square", "D1", "skillgen", False, n, a.seed + 2, "estimate"),
-        "perception_ground_truth": run_cell("Square", "D1", "skillgen", False, n, a.seed + 2, "ground_truth"),
-    }
-    if not a.skip_graph:
-        extra["graph_overhead"] = graph_overhead(max(3, n // 4), a.seed + 3)
+    extra = {k: f(n, a.seed, a.perception) for k, f in EXTRAS.items() if not (k == "graph_overhead" and a.skip_graph)}
     summary = _summarize(cells)
     out = {"benchmark": "datagen", "rerun": " ".join(["python", "bench/datagen/run.py", *sys.argv[1:]]),
            "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform()},

@@ -4,10 +4,13 @@ Interfaces (relative names):
 - service `plan_to_pose` (skillgen_interfaces/srv/PlanToPose)
 - reads the newest `joint_states` on demand when a request gives no start configuration (like
   the clouds below: in lockstep joint_states come hundreds of times a second and each would wake
-  a subscribed node)
-- subscribes `camera/front/points` + `camera/wrist/points` (sensor QoS) and `perception/obstacles`
+  a subscribed node); the reader is made on the first such request, so a graph whose client
+  always sends start_positions costs the driver no delivery per period
+- reads `camera/front/points` + `camera/wrist/points` (sensor QoS) and `perception/obstacles`
   (reliable, transient local) for SOURCE_POINT_CLOUD; the perception cloud wins when present.
-  They are read on demand, the newest at request time (nodes/latest.py), and decoded only then.
+  They are read on demand, the newest at request time (nodes/latest.py), and decoded only then;
+  the readers are made on the first point-cloud request (which waits up to 1 s for the latched
+  obstacle cloud).
 - publishes `planner/path_markers` (visualization_msgs/MarkerArray, latched) for Foxglove
 - action client `execute_trajectory` (skillgen_interfaces/action/ExecuteTrajectory)
 
@@ -104,10 +107,11 @@ class PlannerNode(Node):
                                      p["approach_distance"], ik_timeout=p["ik_timeout"],
                                      velocity_scale=p["velocity_scale"], dt=p["dt"], seed=seed)
         self._boxes: dict[str, Box] = {}
-        self._clouds = {t: LatestMessage(self, PointCloud2, t, qos_profile_sensor_data)
-                        for t in ("camera/front/points", "camera/wrist/points")}
-        self._clouds["perception/obstacles"] = LatestMessage(self, PointCloud2, "perception/obstacles", LATCHED)
-        self._joints = LatestMessage(self, JointState, "joint_states")
+        # Readers are made on the first request that needs them: a request with start_positions and
+        # SOURCE_SCENE (datagen's) reads nothing, and a reader the driver must deliver every period
+        # to costs the graph's hot loop even if it is never read.
+        self._clouds: dict[str, LatestMessage] | None = None
+        self._joints: LatestMessage | None = None
 
         state_group = ReentrantCallbackGroup()
         self.markers = self.create_publisher(MarkerArray, "planner/path_markers", LATCHED)
@@ -120,6 +124,8 @@ class PlannerNode(Node):
     # -- state -------------------------------------------------------------------------------
     def _current_q(self, timeout: float = 2.0) -> np.ndarray | None:
         """The arm configuration from the newest joint_states (waiting up to `timeout` s for one)."""
+        if self._joints is None:  # a fresh reader must first match the driver, then see a period
+            self._joints, timeout = LatestMessage(self, JointState, "joint_states"), max(timeout, 3.0)
         msg = self._joints.latest(timeout)
         if msg is None:
             return None
@@ -131,7 +137,13 @@ class PlannerNode(Node):
     def _cloud(self) -> np.ndarray:
         """The perception obstacle cloud when there is one, else the camera clouds fused; clouds in
         frames other than the world's are skipped, and only clouds in wrong frames is an error."""
-        msgs = {t: sub.latest() for t, sub in self._clouds.items()}
+        wait = 0.0
+        if self._clouds is None:  # first use: give the latched obstacle cloud time to arrive
+            self._clouds = {t: LatestMessage(self, PointCloud2, t, qos_profile_sensor_data)
+                            for t in ("camera/front/points", "camera/wrist/points")}
+            self._clouds["perception/obstacles"] = LatestMessage(self, PointCloud2, "perception/obstacles", LATCHED)
+            wait = 1.0
+        msgs = {t: sub.latest(wait if t == "perception/obstacles" else 0.0) for t, sub in self._clouds.items()}
         msgs = {t: m for t, m in msgs.items() if m is not None}
         good = {t: m for t, m in msgs.items() if m.header.frame_id in WORLD_FRAMES}
         if len(good) < len(msgs) and not good:

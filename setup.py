@@ -22,6 +22,7 @@ EXECUTABLES = {
     "recorder": "skillgen_ros.nodes.recorder:main",
     "player": "skillgen_ros.nodes.player:main",
     "teleop": "skillgen_ros.nodes.teleop:main",
+    "container": "skillgen_ros.nodes.container:main",
     "skillgen": "skillgen_ros.cli.main:main",
 }
 

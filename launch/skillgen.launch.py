@@ -10,18 +10,26 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
-from skillgen_ros.graphs import load_graph
+from skillgen_ros.graphs import load_graph, processes
+
+ENV = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 
 
 def _nodes(context, *args, **kwargs):
     graph = LaunchConfiguration("graph").perform(context)
     nodes = []
-    for n in load_graph(graph):
+    graph_nodes = load_graph(graph)
+    for n in graph_nodes:
+        if n.container is not None:
+            continue
         nodes.append(Node(package="skillgen_ros", executable=n.exe, name=n.name, arguments=list(n.args),
                           parameters=([n.params_file] if n.params_file else [])
                           + ([{k: yaml.safe_load(v) for k, v in n.parameters}] if n.parameters else []),
-                          output="screen",
-                          additional_env={"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}))
+                          output="screen", additional_env=ENV))
+    for p in processes(graph_nodes):  # composed nodes: the container's arguments carry their parameters
+        if p.exe == "container":
+            nodes.append(Node(package="skillgen_ros", executable="container", arguments=list(p.args),
+                              output="screen", additional_env=ENV))
     return nodes
 
 

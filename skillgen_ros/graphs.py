@@ -16,6 +16,16 @@ from skillgen_ros.core.errors import SkillGenError
 
 PACKAGE = "skillgen_ros"
 
+# Nodes the `container` executable can run together in one process: executable -> module:factory.
+COMPOSABLE = {
+    "sim_driver": "skillgen_ros.nodes.sim_driver:sim_driver",
+    "mock_driver": "skillgen_ros.nodes.mock_driver:mock_driver",
+    "skill_replay": "skillgen_ros.nodes.skill_replay:SkillReplayNode",
+    "perception": "skillgen_ros.nodes.perception:PerceptionNode",
+    "planner": "skillgen_ros.nodes.planner:PlannerNode",
+    "datagen": "skillgen_ros.nodes.datagen:DatagenNode",
+}
+
 
 class UnknownGraphError(SkillGenError):
     reason = "UNKNOWN_GRAPH"
@@ -32,16 +42,53 @@ class NodeLaunch:
     name: str | None = None
     args: tuple[str, ...] = field(default_factory=tuple)
     parameters: tuple[tuple[str, str], ...] = field(default_factory=tuple)  # graph-specific overrides
+    container: str | None = None  # nodes naming the same container share one process
 
-    def ros_args(self) -> list[str]:
+    def ros_args(self, targeted: bool = False) -> list[str]:
+        """--ros-args for this node; `targeted` prefixes parameters and the name remap with the
+        node's name, as a container with several nodes needs (`-p sim_driver:camera_hz:=0.0`)."""
+        node = f"{self.exe}:" if targeted else ""
         out = ["--ros-args"]
         if self.params_file:
             out += ["--params-file", self.params_file]
         for k, v in self.parameters:
-            out += ["-p", f"{k}:={v}"]
+            out += ["-p", f"{node}{k}:={v}"]
         if self.name:
-            out += ["-r", f"__node:={self.name}"]
+            out += ["-r", f"{node}__node:={self.name}"]
         return out
+
+
+@dataclass(frozen=True)
+class ProcessLaunch:
+    """One process to start: a node's own executable, or `container` running several nodes."""
+    label: str
+    exe: str
+    args: tuple[str, ...]
+
+
+def processes(nodes: list[NodeLaunch]) -> list[ProcessLaunch]:
+    """The processes a graph's nodes run in, in order (a container where its first node is)."""
+    groups: dict[str, list[NodeLaunch]] = {}
+    order: list[NodeLaunch | str] = []
+    for n in nodes:
+        if n.container is None:
+            order.append(n)
+        elif n.container not in groups:
+            groups[n.container] = [n]
+            order.append(n.container)
+        else:
+            groups[n.container].append(n)
+    out = []
+    for item in order:
+        if isinstance(item, NodeLaunch):
+            out.append(ProcessLaunch(item.exe, item.exe, (*item.args, *item.ros_args())))
+            continue
+        members = groups[item]
+        args = [m.exe for m in members] + ["--ros-args"]
+        for m in members:
+            args += m.ros_args(targeted=True)[1:]
+        out.append(ProcessLaunch(f"{item} ({', '.join(m.exe for m in members)})", "container", tuple(args)))
+    return out
 
 
 def executables() -> list[str]:
@@ -100,8 +147,13 @@ def load_graph(name: str, params: Path | None = None) -> list[NodeLaunch]:
                                    f"{PACKAGE}; known: {', '.join(sorted(known))}")
         pfile = pdir / entry.get("params", f"{exe}.yaml")
         overrides = tuple((str(k), _ros_value(v)) for k, v in (entry.get("parameters") or {}).items())
+        container = entry.get("container")
+        if container is not None and (exe not in COMPOSABLE or entry.get("args")):
+            raise UnknownNodeError(f"graph '{name}' puts '{exe}' in container '{container}', but only "
+                                   f"{', '.join(sorted(COMPOSABLE))} can share a process (without args)")
         out.append(NodeLaunch(exe=exe, params_file=str(pfile) if pfile.is_file() else None,
-                              name=entry.get("name"), args=tuple(entry.get("args", ())), parameters=overrides))
+                              name=entry.get("name"), args=tuple(entry.get("args", ())), parameters=overrides,
+                              container=str(container) if container is not None else None))
     return out
 
 

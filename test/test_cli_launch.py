@@ -78,3 +78,34 @@ def test_launch_names_the_node_that_died_and_stops_the_rest(ros_domain, tmp_path
     finally:
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
+
+
+def test_container_runs_several_nodes_in_one_process(ros_domain, tmp_path):
+    """Two composed nodes answer as separate nodes; node-targeted parameters reach only their node;
+    an unknown node name is a one-line error."""
+    from conftest import client_node
+
+    r = _run(["run", "container", "mock_driver", "warp_drive"], node_env(ros_domain))
+    assert r.returncode == 2 and "UNKNOWN_NODE" in r.stderr and "Traceback" not in r.stderr
+    p = subprocess.Popen(SKILLGEN + ["run", "container", "mock_driver", "skill_replay", "--ros-args",
+                                     "--params-file", str(REPO / "params" / "mock_driver.yaml"),
+                                     "-p", "mock_driver:control_hz:=7.0", "-p", "skill_replay:feedback_hz:=3.0"],
+                         env=node_env(ros_domain), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                         cwd=REPO, start_new_session=True)
+    try:
+        from rclpy.parameter_client import AsyncParameterClient
+
+        with client_node(ros_domain, "container_probe") as (node, ex):
+            assert wait_for(lambda: {"mock_driver", "skill_replay"} <= set(node.get_node_names()), 30)
+            got = {}
+            for name in ("mock_driver", "skill_replay"):
+                cli = AsyncParameterClient(node, name)
+                assert cli.wait_for_services(timeout_sec=20)
+                fut = cli.get_parameters(["control_hz" if name == "mock_driver" else "feedback_hz"])
+                ex.spin_until_future_complete(fut, timeout_sec=20)
+                got[name] = fut.result().values[0].double_value
+            assert got == {"mock_driver": 7.0, "skill_replay": 3.0}
+        assert len(psutil.Process(p.pid).children(recursive=True)) == 0  # one process, no helpers
+    finally:
+        os.killpg(p.pid, signal.SIGINT)
+        p.wait(30)

@@ -1,5 +1,5 @@
 """End to end over the ROS graph on the simulated Panda (never the mock driver):
-sim_driver (lockstep) + perception (estimate) + planner + skill_replay + datagen, driven through
+sim_driver (lockstep) + skill_replay in one container, perception (estimate), planner, datagen, driven through
 the `generate` action with SkillGenClient. One graph serves the module's tests.
 """
 import shutil
@@ -14,11 +14,15 @@ from conftest import REPO, NodeProcess, client_node, next_domain_id, wait_for
 from skillgen_ros.client import SkillGenClient
 from skillgen_ros.core.dataset.hdf5 import validate_dataset
 
+# As graphs.yaml's datagen graph: sim_driver and skill_replay composed in one `container` process
+# (node-targeted -p), the driver rendering frames on demand (camera_hz 0).
+CONTROL_LOOP = ["sim_driver", "skill_replay", "--ros-args",
+                "--params-file", str(REPO / "params" / "sim_driver.yaml"),
+                "--params-file", str(REPO / "params" / "skill_replay.yaml"),
+                "-p", "sim_driver:cameras:=[front]", "-p", "sim_driver:camera_hz:=0.0"]
 NODES = {
-    "sim_driver": ["-p", "cameras:=[front]", "-p", "camera_hz:=0.0"],  # as graphs.yaml: frames on demand
     "perception": [],
     "planner": [],
-    "skill_replay": [],
     "datagen": ["-p", "timeout_perception:=8.0", "-p", "timeout_plan:=8.0"],
     "recorder": ["-p", "autostart:=false", "-p", "topics:=[joint_states, osc_target, camera/front/image]"],
 }
@@ -31,7 +35,8 @@ def _start(exe: str, dom: int) -> NodeProcess:
 @pytest.fixture(scope="module")
 def graph():
     dom = next_domain_id()
-    procs = {exe: _start(exe, dom) for exe in NODES}
+    procs = {"control_loop": NodeProcess("container", dom, CONTROL_LOOP)}
+    procs.update({exe: _start(exe, dom) for exe in NODES})
     client = SkillGenClient(domain_id=dom)
     try:
         assert client.wait_for_server(180), "datagen did not come up"
@@ -118,6 +123,27 @@ def test_seeded_attempts_produce_a_valid_robomimic_dataset(graph, tmp_path):
         assert demo["actions"].shape == (n, 7) and demo["labels/mp_step"][:].any() and not demo["labels/mp_step"][:].all()
         assert "successful" in f["mask"]
     assert Path(res.report_path).exists()
+
+
+def test_skill_replay_loads_demos_ahead_and_says_why_not(graph, tmp_path):
+    from skillgen_interfaces.srv import LoadDemos
+
+    dom, _, _ = graph
+    with client_node(dom, "load_demos_client") as (node, ex):
+        cli = node.create_client(LoadDemos, "skill_replay/load_demos")
+        assert cli.wait_for_service(timeout_sec=30)
+
+        def call(**kw):
+            fut = cli.call_async(LoadDemos.Request(**kw))
+            ex.spin_until_future_complete(fut, timeout_sec=60)
+            return fut.result()
+
+        ok = call(task="Square")
+        assert ok.success and ok.demos > 0, ok.message
+        empty = call(task="Square", source_demos=str(tmp_path))
+        assert not empty.success and empty.reason_code == "NO_SOURCE_DEMOS", empty.message
+        unknown = call(task="Nope", source_demos=str(REPO / "bags" / "Square"))
+        assert not unknown.success and unknown.reason_code == "UNKNOWN_TASK", unknown.reason_code
 
 
 def test_no_video_attempts_means_no_mp4(graph, tmp_path):

@@ -10,7 +10,7 @@ import yaml
 from ament_index_python.packages import get_package_prefix, get_package_share_directory
 from catkin_pkg.package import parse_package
 
-from skillgen_ros.graphs import graph_names, load_graph, node_executables
+from skillgen_ros.graphs import COMPOSABLE, NodeLaunch, graph_names, load_graph, node_executables, processes
 
 REPO = Path(__file__).resolve().parents[1]
 EXPECTED = {"sim_driver", "mock_driver", "perception", "planner", "skill_replay", "datagen", "hsp",
@@ -18,7 +18,32 @@ EXPECTED = {"sim_driver", "mock_driver", "perception", "planner", "skill_replay"
 
 
 def test_every_node_executable_is_declared():
-    assert EXPECTED <= set(node_executables())
+    assert EXPECTED | {"container"} <= set(node_executables())
+    assert set(COMPOSABLE) <= EXPECTED
+
+
+def test_container_groups_become_one_process_with_node_targeted_args():
+    nodes = [NodeLaunch("sim_driver", "/p/sim_driver.yaml", parameters=(("camera_hz", "0.0"),), container="loop"),
+             NodeLaunch("planner", "/p/planner.yaml", parameters=(("dt", "0.01"),)),
+             NodeLaunch("skill_replay", None, name="replay", container="loop")]
+    procs = processes(nodes)
+    assert [p.exe for p in procs] == ["container", "planner"]  # the container where its first node is
+    c = procs[0].args
+    assert c[:3] == ("sim_driver", "skill_replay", "--ros-args") and c.count("--ros-args") == 1
+    assert "sim_driver:camera_hz:=0.0" in c and "skill_replay:__node:=replay" in c and "/p/sim_driver.yaml" in c
+    assert procs[1].args == ("--ros-args", "--params-file", "/p/planner.yaml", "-p", "dt:=0.01")
+    datagen = {p.exe: p for p in processes(load_graph("datagen"))}
+    assert datagen["container"].args[:2] == ("sim_driver", "skill_replay") and "sim_driver" not in datagen
+
+
+def test_only_composable_nodes_share_a_container(tmp_path, monkeypatch):
+    from skillgen_ros.graphs import UnknownNodeError
+
+    bad = tmp_path / "graphs.yaml"
+    bad.write_text("graphs:\n  g:\n    nodes:\n      - exe: teleop\n        container: c\n")
+    monkeypatch.setenv("SKILLGEN_GRAPHS", str(bad))
+    with pytest.raises(UnknownNodeError, match="only"):
+        load_graph("g")
 
 
 @pytest.mark.parametrize("exe", sorted(EXPECTED))

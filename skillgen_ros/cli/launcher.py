@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 from skillgen_ros import rosenv
-from skillgen_ros.graphs import PACKAGE, UnknownNodeError, load_graph, node_executables
+from skillgen_ros.graphs import PACKAGE, UnknownNodeError, load_graph, node_executables, processes
 
 
 def resolve_executable(exe: str) -> Path:
@@ -57,10 +57,10 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
 
     old = {s: signal.signal(s, _forward) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        for n in nodes:
-            cmd = [str(resolve_executable(n.exe)), *n.args, *n.ros_args(), *(extra_ros_args or [])]
-            print(f"[launch] starting {n.exe}: {' '.join(cmd)}", file=sys.stderr, flush=True)
-            procs.append((n.exe, subprocess.Popen(cmd, env=env)))
+        for proc in processes(nodes):
+            cmd = [str(resolve_executable(proc.exe)), *proc.args, *(extra_ros_args or [])]
+            print(f"[launch] starting {proc.label}: {' '.join(cmd)}", file=sys.stderr, flush=True)
+            procs.append((proc.label, subprocess.Popen(cmd, env=env)))
         failed: tuple[str, int] | None = None
         while True:
             alive = [(name, p) for name, p in procs if p.poll() is None]

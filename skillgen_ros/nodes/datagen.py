@@ -118,6 +118,13 @@ class DatagenNode(Node):
             self.get_logger().error(f"generate rejected: {res.message}")
             goal_handle.abort()
             return res
+        try:
+            self.env.load_demos(req.task)  # outside the attempts' time, and a clear early error
+        except SkillGenError as e:
+            res.accepted, res.reason, res.message = False, e.reason, str(e.args[0])
+            self.get_logger().error(f"generate rejected: {e}")
+            goal_handle.abort()
+            return res
         res.accepted = True
         bag = self._start_bag(req) if g.record_bag else ""
 

@@ -34,7 +34,7 @@ from std_msgs.msg import String
 
 from skillgen_interfaces.action import ReplaySkill
 from skillgen_interfaces.msg import OscTarget, SceneObject
-from skillgen_interfaces.srv import CaptureCameras, EstimatePoses, PlanToPose, ResetScene, TaskSuccess
+from skillgen_interfaces.srv import CaptureCameras, EstimatePoses, LoadDemos, PlanToPose, ResetScene, TaskSuccess
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
 from skillgen_ros.core.generation.grasp import GraspTracker, grasp_step
@@ -67,6 +67,7 @@ class RosGraphEnv:
         self.plan_cli = node.create_client(PlanToPose, "plan_to_pose", callback_group=group)
         self.replay_ac = ActionClient(node, ReplaySkill, "replay_skill", callback_group=group)
         self.capture_cli = node.create_client(CaptureCameras, "capture_cameras", callback_group=group)
+        self.load_demos_cli = node.create_client(LoadDemos, "skill_replay/load_demos", callback_group=group)
         self._driver_params = AsyncParameterClient(node, driver_node, callback_group=group) if driver_node else None
         self._video_hz = float(video_camera_hz)
         self._camera_hz_before: float | None = None
@@ -189,6 +190,17 @@ class RosGraphEnv:
         if held in objects:  # a held object moves with the hand (rigid attachment)
             objects[held] = self.grasps.pose_now(held, ee_pose.matrix())
         return Observation(ee_pose=ee_pose, gripper=f, joint_positions=q, object_poses=objects)
+
+    def load_demos(self, task: str) -> None:
+        """Have skill_replay load the run's source demos before the first attempt (raises with its
+        reason if it cannot); a skill_replay without the service loads them on the first goal."""
+        if not self.load_demos_cli.wait_for_service(timeout_sec=2.0):
+            return
+        resp = self._call(self.load_demos_cli, LoadDemos.Request(task=task, source_demos=self.demos_dir),
+                          self.t["skill"], "skill_replay/load_demos", "SKILL_FAILED")
+        if not resp.success:
+            raise SkillGenError(f"skill_replay cannot load the source demos: {resp.message}",
+                                reason=resp.reason_code or "SKILL_FAILED")
 
     def wait_ready(self, timeout: float) -> list[str]:
         """Wait for every server an attempt needs; returns the names still missing after `timeout`."""

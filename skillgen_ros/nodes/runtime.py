@@ -33,23 +33,31 @@ def run_node(factory: Callable[[], "rclpy.node.Node"], args=None, threads: int =
     override it with an `executor_kind` attribute decided from its parameters. rclpy's C++
     EventsExecutor would be cheaper still, but in this rclpy (7.1.5) it never answers an action
     server's goal requests."""
+    return run_nodes([factory], args, threads, name or getattr(factory, "__name__", "node"), executor)
+
+
+def run_nodes(factories: list[Callable[[], "rclpy.node.Node"]], args=None, threads: int = 4, name: str = "node",
+              executor: str = "multi") -> int:
+    """Several nodes in this process on one executor (ROS 2 composition; see nodes/container.py):
+    single-threaded only if every node asks for it (`executor_kind`, else `executor`)."""
     args = sys.argv if args is None else args
-    name = name or getattr(factory, "__name__", "node")
     try:
         rclpy.init(args=args)
     except rclpy._rclpy_pybind11.RCLError as e:  # bad --ros-args / unparsable params file
         return _fail(name, "INVALID_PARAMETER", str(e).split(", at ")[0])
-    node = None
+    nodes = []
     try:
         try:
-            node = factory()
+            for factory in factories:
+                nodes.append(factory())
         except SkillGenError as e:
             return _fail(name, e.reason, str(e.args[0]))
         except ParameterException as e:  # wrong type / unset required parameter in the params file
             return _fail(name, "INVALID_PARAMETER", str(e))
-        kind = getattr(node, "executor_kind", executor)
-        ex = SingleThreadedExecutor() if kind == "single" else MultiThreadedExecutor(num_threads=threads)
-        ex.add_node(node)
+        single = all(getattr(n, "executor_kind", executor) == "single" for n in nodes)
+        ex = SingleThreadedExecutor() if single else MultiThreadedExecutor(num_threads=threads)
+        for n in nodes:
+            ex.add_node(n)
         try:
             ex.spin()
         finally:
@@ -60,9 +68,9 @@ def run_node(factory: Callable[[], "rclpy.node.Node"], args=None, threads: int =
         # A second Ctrl-C must not interrupt the cleanup (a recorder finalizing its bag, say).
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        if node is not None:
+        for n in nodes:
             try:
-                node.destroy_node()
+                n.destroy_node()
             except Exception:  # noqa: BLE001 - context may already be gone at shutdown
                 pass
         if rclpy.ok():

@@ -17,6 +17,7 @@ The step loop is the graph's hot path (one round trip per control period), so th
 SingleThreadedExecutor and the action is a coroutine that awaits the next joint state: no thread
 pool, no busy wait set (a MultiThreadedExecutor spun a whole core here while a goal blocked).
 
+Service `~/load_demos` loads a task's demos ahead of a run (datagen calls it before the first attempt).
 Parameters (params/skill_replay.yaml): demos_dir, action_noise, step_timeout, frame_id, feedback_hz.
 """
 from __future__ import annotations
@@ -33,6 +34,7 @@ from sensor_msgs.msg import JointState
 
 from skillgen_interfaces.action import ReplaySkill
 from skillgen_interfaces.msg import OscTarget
+from skillgen_interfaces.srv import LoadDemos
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.geometry import Pose, validate_pose
 from skillgen_ros.core.generation.selection import make_strategy
@@ -51,6 +53,7 @@ from skillgen_ros.nodes.runtime import run_node
 class SkillReplayNode(Node):
     def __init__(self):
         super().__init__("skill_replay")
+        self.executor_kind = "single"  # the step loop is a coroutine (see the module docstring)
         self.declare_parameter("demos_dir", "bags")
         self.declare_parameter("action_noise", 0.05)
         self.declare_parameter("step_timeout", 5.0)
@@ -69,6 +72,7 @@ class SkillReplayNode(Node):
         self.server = ActionServer(self, ReplaySkill, "replay_skill", self._execute,
                                    goal_callback=self._on_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT)
         self.create_timer(0.1, self._on_watchdog)
+        self.create_service(LoadDemos, "~/load_demos", self._on_load_demos)
 
     # -- state (all callbacks run on the one executor thread: no locks)
     def _on_joints(self, msg: JointState):
@@ -121,6 +125,15 @@ class SkillReplayNode(Node):
                 raise SkillGenError(f"no source demo bags under {d}", reason="NO_SOURCE_DEMOS")
             self._demos[key] = load_source_demos(paths, get_task(task))
         return self._demos[key]
+
+    def _on_load_demos(self, req: LoadDemos.Request, res: LoadDemos.Response) -> LoadDemos.Response:
+        try:
+            res.demos = len(self.demos_for(req.task, req.source_demos))
+        except SkillGenError as e:
+            res.success, res.reason_code, res.message = False, e.reason, str(e.args[0])
+            return res
+        res.success, res.reason_code, res.message = True, "OK", f"{res.demos} source demos for {req.task}"
+        return res
 
     async def _execute(self, goal_handle):
         self._busy = True
@@ -211,7 +224,7 @@ class SkillReplayNode(Node):
 
 
 def main(args=None) -> int:
-    return run_node(SkillReplayNode, args, executor="single")
+    return run_node(SkillReplayNode, args)
 
 
 if __name__ == "__main__":

@@ -144,6 +144,7 @@ def test_driver_interface_and_bad_input(exe, start_node, client):
     proc = start_node(exe, params=str(REPO / "params" / f"{exe}.yaml"))
     # --- conformance: names and types
     assert client.spin_until(lambda: all(t in _graph(client)[0] for t in EXPECTED_TOPICS)
+                             and all(s in _graph(client)[1] for s in EXPECTED_SERVICES)
                              and all(a in _graph(client)[2] for a in EXPECTED_ACTIONS), 20.0), _graph(client)
     topics, services, actions = _graph(client)
     for name, typ in EXPECTED_TOPICS.items():

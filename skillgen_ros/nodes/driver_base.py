@@ -163,7 +163,8 @@ class DriverNode(Node):
         raises camera_hz while it films an attempt); the rest shape the world or the interface
         at start-up, so changing them later is refused rather than silently ignored."""
         live = {"camera_hz", "lockstep_timeout_s", "publish_points", "feedback_hz", "use_sim_time"}
-        for p in params:
+        every = None
+        for p in params:  # all or nothing: check every change before applying any
             if p.name not in live:
                 return SetParametersResult(successful=False, reason=f"{p.name} is read-only after start-up")
             try:
@@ -173,8 +174,8 @@ class DriverNode(Node):
                     raise ParameterError(f"{p.name} must be > 0, got {p.value}")
             except (ParameterError, TypeError, ValueError) as e:
                 return SetParametersResult(successful=False, reason=str(e))
-            if p.name == "camera_hz":
-                self.camera_every = every
+        if every is not None:
+            self.camera_every = every
         return SetParametersResult(successful=True)
 
     # ----------------------------------------------------------------- stepping

@@ -10,8 +10,7 @@ controller period. The current EE pose is forward kinematics (pinocchio) of thos
 robot_state_publisher would give it: one topic closes the loop, so the driver sends one message
 per period to this node instead of two (every reader of a topic costs the publisher a delivery).
 Feedback every step (at most feedback_hz per wall second: every step in real time, rate-limited in
-lockstep); the result carries every executed step, so datagen
-can write the dataset.
+lockstep); the result carries every executed step, so datagen can write the dataset.
 
 The step loop is the graph's hot path (one round trip per control period), so the node runs on a
 SingleThreadedExecutor and the action is a coroutine that awaits the next joint state: no thread

@@ -11,8 +11,9 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from skillgen_ros.graphs import load_graph, processes
+from skillgen_ros.rosenv import NODE_THREAD_DEFAULTS
 
-ENV = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+ENV = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", **NODE_THREAD_DEFAULTS}
 
 
 def _nodes(context, *args, **kwargs):

@@ -106,19 +106,9 @@ class DatagenNode(Node):
             req = self._request(g)
             validate_request(req, TASK_NAMES)
             demos = self._demos(req)
-        except SkillGenError as e:
-            res.accepted, res.reason, res.message = False, e.reason, str(e.args[0])
-            self.get_logger().error(f"generate rejected: {e}")
-            goal_handle.abort()
-            return res
-        missing = self.env.wait_ready(float(self.get_parameter("timeout_state").value) * 3)
-        if missing:
-            res.accepted, res.reason = False, "GRAPH_NOT_READY"
-            res.message = f"not available: {', '.join(missing)}"
-            self.get_logger().error(f"generate rejected: {res.message}")
-            goal_handle.abort()
-            return res
-        try:
+            missing = self.env.wait_ready(float(self.get_parameter("timeout_state").value) * 3)
+            if missing:
+                raise SkillGenError(f"not available: {', '.join(missing)}", reason="GRAPH_NOT_READY")
             self.env.load_demos(req.task)  # outside the attempts' time, and a clear early error
         except SkillGenError as e:
             res.accepted, res.reason, res.message = False, e.reason, str(e.args[0])

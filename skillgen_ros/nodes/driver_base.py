@@ -26,9 +26,8 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header, String
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
@@ -39,9 +38,9 @@ from skillgen_interfaces.srv import CaptureCameras, ResetScene, TaskSuccess
 from skillgen_ros.core.errors import ParameterError, SkillGenError
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
-from skillgen_ros.core.sim.camera import CameraConfig
 from skillgen_ros.core.sim.commands import TrajectoryCode, TrajectoryError, validate_gripper, validate_osc_target
 from skillgen_ros.nodes import convert
+from skillgen_ros.nodes.driver_cameras import DriverCameras
 from skillgen_ros.nodes.feedback import FeedbackThrottle
 
 PARAMS = {  # name: (default, description)
@@ -92,8 +91,6 @@ class DriverNode(Node):
         if not float(self.param("lockstep_timeout_s")) > 0:
             raise ParameterError("lockstep_timeout_s must be > 0")
         self.frame = self.param("frame_id")
-        self.camera_names = [c for c in self.param("cameras") if c]
-        self.camera_every = self._camera_every(self.param("camera_hz"))  # 0: no periodic frames
         self.world = make_world(self.param)
         self.lock = threading.RLock()
         self.period = 0
@@ -110,19 +107,14 @@ class DriverNode(Node):
 
         def pub(typ, topic, qos):
             return self.create_publisher(typ, topic, qos, event_callbacks=ev)
-        sensor = qos_profile_sensor_data
         self.pub_js = pub(convert.JointState, "joint_states", RELIABLE)
         self.pub_ee = pub(PoseStamped, "ee_pose", RELIABLE)
         self.pub_grip = pub(GripperState, "gripper_state", RELIABLE)
         self.pub_gt = pub(ObjectPoseArray, "sim/ground_truth/object_poses", LATCHED)
         self.pub_err = pub(String, "driver/errors", RELIABLE)
         self.pub_clock = pub(Clock, "/clock", RELIABLE) if self.mode == "lockstep" else None
-        self.cam_pubs = {n: {"points": pub(convert.PointCloud2, f"camera/{n}/points", sensor),
-                             "image": pub(Image, f"camera/{n}/image", sensor),
-                             "depth": pub(Image, f"camera/{n}/depth", sensor),
-                             "camera_info": pub(CameraInfo, f"camera/{n}/camera_info", sensor),
-                             "pose": pub(PoseStamped, f"camera/{n}/pose", sensor)}
-                         for n in self.camera_names}
+        self.cameras = DriverCameras([c for c in self.param("cameras") if c], self.frame, self.hz,
+                                     self.param("camera_hz"), pub)
         self.create_subscription(OscTarget, "osc_target", self._on_target, RELIABLE,
                                  callback_group=MutuallyExclusiveCallbackGroup(),
                                  event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
@@ -146,17 +138,10 @@ class DriverNode(Node):
                 raise ParameterError(f"initial scene: {e}")
         self._publish(cameras=True, force=True)
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.get_logger().info(f"{name} up: {self.mode}, {self.hz:g} Hz, cameras {self.camera_names}")
+        self.get_logger().info(f"{name} up: {self.mode}, {self.hz:g} Hz, cameras {self.cameras.names}")
 
     def param(self, name: str):
         return self.get_parameter(name).value
-
-    def _camera_every(self, camera_hz) -> int:
-        """Control periods per periodic camera frame (0: none); ParameterError if camera_hz is bad."""
-        hz = float(camera_hz)
-        if not hz >= 0 or hz == float("inf"):
-            raise ParameterError(f"camera_hz must be a finite value >= 0, got {camera_hz}")
-        return max(1, int(round(self.hz / hz))) if hz > 0 else 0
 
     def _on_set_parameters(self, params) -> SetParametersResult:
         """camera_hz, lockstep_timeout_s, publish_points and feedback_hz apply at once (datagen
@@ -169,13 +154,13 @@ class DriverNode(Node):
                 return SetParametersResult(successful=False, reason=f"{p.name} is read-only after start-up")
             try:
                 if p.name == "camera_hz":
-                    every = self._camera_every(p.value)
+                    every = self.cameras.periods_per_frame(p.value)
                 elif p.name in ("lockstep_timeout_s", "feedback_hz") and not float(p.value) > 0:
                     raise ParameterError(f"{p.name} must be > 0, got {p.value}")
             except (ParameterError, TypeError, ValueError) as e:
                 return SetParametersResult(successful=False, reason=str(e))
         if every is not None:
-            self.camera_every = every
+            self.cameras.every = every
         return SetParametersResult(successful=True)
 
     # ----------------------------------------------------------------- stepping
@@ -191,7 +176,7 @@ class DriverNode(Node):
             fn()
             self.period += 1
             self._last_step_wall = time.monotonic()
-            self._publish(cameras=bool(self.camera_every) and self.period % self.camera_every == 0)
+            self._publish(cameras=self.cameras.due(self.period))
 
     def _on_target(self, msg: OscTarget) -> None:
         try:
@@ -248,38 +233,15 @@ class DriverNode(Node):
         if wanted(self.pub_grip):
             self.pub_grip.publish(GripperState(header=header, width=float(w.gripper_width()),
                                                command=float(w.gripper_command), grasping=bool(w.is_grasping())))
-        # ee_pose last: a closed-loop client (skill_replay) takes it as "this period's state is out"
+        # ee_pose last: a client closing the loop on it sees the whole period's state out before it
         if wanted(self.pub_ee):
             self.pub_ee.publish(convert.pose_stamped(w.ee_pose(), self.frame, stamp))
         if w.scene is not None and wanted(self.pub_gt):
             self.pub_gt.publish(ObjectPoseArray(header=header, objects=[
                 ObjectPose(id=oid, type=self._types[oid], pose=convert.pose_to_msg(p), confidence=1.0)
                 for oid, p in w.object_poses().items()]))
-        if cameras:
-            for n in self.camera_names:
-                if any(p.get_subscription_count() for p in self.cam_pubs[n].values()):  # not forced: no latch
-                    self._publish_camera(n, stamp)
-
-    def _publish_camera(self, name: str, stamp: Time) -> None:
-        f = self.world.render(name)
-        pubs, h, wd = self.cam_pubs[name], f.depth.shape[0], f.depth.shape[1]
-        optical = Header(frame_id=f"camera_{name}_optical", stamp=stamp)
-        pubs["image"].publish(Image(header=optical, height=h, width=wd, encoding="rgb8", step=3 * wd,
-                                    data=np.ascontiguousarray(f.rgb, np.uint8).tobytes()))
-        pubs["depth"].publish(Image(header=optical, height=h, width=wd, encoding="32FC1", step=4 * wd,
-                                    data=np.ascontiguousarray(f.depth, np.float32).tobytes()))
-        K = f.K
-        P = np.hstack([K, np.zeros((3, 1))])
-        pubs["camera_info"].publish(CameraInfo(header=optical, height=h, width=wd, distortion_model="plumb_bob",
-                                               d=[0.0] * 5, k=K.reshape(-1).tolist(), r=np.eye(3).reshape(-1).tolist(),
-                                               p=P.reshape(-1).tolist()))
-        pubs["pose"].publish(convert.pose_stamped(Pose.from_matrix(f.T_world_camera), self.frame, stamp))
-        if self.param("publish_points"):
-            pts = f.points_world
-            organized = pts.shape[:2] if pts.ndim == 3 else None
-            rgb = f.rgb.reshape(-1, 3) if organized else None
-            pubs["points"].publish(convert.points_to_cloud(pts.reshape(-1, 3), self.frame, stamp, rgb=rgb,
-                                                           organized_shape=organized))
+        if cameras:  # only cameras with a reader, even when forced: none is latched
+            self.cameras.publish(w, stamp, bool(self.param("publish_points")))
 
     # ----------------------------------------------------------------- services
     def _on_reset(self, req: ResetScene.Request, res: ResetScene.Response) -> ResetScene.Response:
@@ -306,19 +268,18 @@ class DriverNode(Node):
         return res
 
     def _on_capture(self, _req: CaptureCameras.Request, res: CaptureCameras.Response) -> CaptureCameras.Response:
-        if not self.camera_names:
+        if not self.cameras.names:
             res.success, res.reason_code, res.message = False, "NO_CAMERAS", "parameter cameras is empty"
             return res
         try:
             with self.lock:
                 stamp = self._stamp()
-                for n in self.camera_names:
-                    self._publish_camera(n, stamp)
+                self.cameras.publish(self.world, stamp, bool(self.param("publish_points")), only_read=False)
         except Exception as e:  # noqa: BLE001 - report, keep serving
             res.success, res.reason_code, res.message = False, "INTERNAL_ERROR", repr(e)
             return res
         res.success, res.reason_code, res.stamp = True, "OK", stamp
-        res.message = f"captured {', '.join(self.camera_names)}"
+        res.message = f"captured {', '.join(self.cameras.names)}"
         return res
 
     def _on_success(self, req: TaskSuccess.Request, res: TaskSuccess.Response) -> TaskSuccess.Response:
@@ -417,17 +378,3 @@ class DriverNode(Node):
         self.world.close()
         super().destroy_node()
 
-
-def camera_configs(param) -> tuple[CameraConfig, ...]:
-    """CameraConfig per name in the `cameras` parameter, from the <name>_* parameters."""
-    out = []
-    for n in param("cameras"):
-        if not n:
-            continue
-        if n not in ("front", "wrist"):
-            raise ParameterError(f"unknown camera {n!r} (front, wrist)")
-        out.append(CameraConfig(n, int(param(f"{n}_width")), int(param(f"{n}_height")), float(param(f"{n}_fov_deg")),
-                                noise_base=float(param("depth_noise_base")),
-                                noise_quadratic=float(param("depth_noise_quadratic")),
-                                dropout=float(param("depth_dropout"))))
-    return tuple(out)

@@ -13,7 +13,7 @@ from skillgen_ros.nodes.runtime import run_node
 
 def make_world(param):
     from skillgen_ros.core.sim.mock import MockWorld
-    from skillgen_ros.nodes.driver_base import camera_configs
+    from skillgen_ros.nodes.driver_cameras import camera_configs
 
     return MockWorld(float(param("control_hz")), camera_configs(param))
 

@@ -25,7 +25,7 @@ def make_world(param):
     from skillgen_ros.core.errors import ParameterError, SkillGenError
     from skillgen_ros.core.sim.control import JointGains, OscGains
     from skillgen_ros.core.sim.world import SimConfig, SimWorld
-    from skillgen_ros.nodes.driver_base import camera_configs
+    from skillgen_ros.nodes.driver_cameras import camera_configs
 
     try:
         cfg = SimConfig(control_hz=float(param("control_hz")), physics_hz=float(param("physics_hz")),

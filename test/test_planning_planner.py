@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from skillgen_ros.core.geometry import Pose
-from skillgen_ros.core.planning.collision import AttachedObject, Box, CollisionModel
+from skillgen_ros.core.planning.collision import LINKS, AttachedObject, Box, CollisionModel
 from skillgen_ros.core.planning.ik import IKSolver
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.planning.phases import line_deviation, orientation_deviation
@@ -170,3 +170,55 @@ def test_transfer_lifts_off_and_places_onto_supports(setup):
     Q = np.vstack([cm.motion_samples(p, q, cube) for p, q in zip(res.joint_path[a:b], res.joint_path[a + 1:b + 1])])
     assert not cm.in_collision(Q, attached=cube).any()  # in transfer: no contact at all
     cm.set_boxes([])
+
+
+def test_start_with_the_hand_against_a_fixture_backs_out_along_the_retreat(setup):
+    """A replayed skill can leave the fingertips touching a fixture; the straight retreat may pass
+    through that contact, but must end clear, and nothing else is tolerated."""
+    kin, cm, planner = setup
+    q0 = planner.ik.solve(Pose([0.5, 0.0, 0.12], DOWN).matrix(), seed_q=Q_HOME, timeout=0.5).solutions[0]
+    S = cm.sphere_world(q0)
+    hand = cm.robot.group == LINKS.index("panda_hand")
+    low = float((S[hand, 2] - S[hand, 3]).min())
+    block = _box("block", [0.5, 0.0, (low + 0.004) / 2], [0.06, 0.06, (low + 0.004) / 2])  # 4 mm into the fingertips
+    cm.set_boxes([block])
+    try:
+        assert cm.in_collision(q0[None])[0]
+        target = Pose([0.4, 0.3, 0.3], DOWN)
+        res = planner.plan(q0, target, timeout=5.0)
+        assert res.ok, res.message
+        assert "touches block" in res.message
+        a, b = next((a, b) for name, a, b in res.segments if name == "retreat")
+        rise = kin.fk(res.joint_path[b])[2, 3] - kin.fk(q0)[2, 3]
+        assert rise == pytest.approx(planner.retreat_distance, abs=2e-3)  # straight up, 5 cm
+        assert not cm.in_collision(res.joint_path[b:]).any()
+        # the arm inside the block is not a hand contact: still refused
+        cm.set_boxes([block, _box("pillar", kin.link_poses(q0)["panda_link4"][:3, 3], [0.03, 0.03, 0.03])])
+        assert planner.plan(q0, target, timeout=2.0).status is PlanStatus.START_IN_COLLISION
+    finally:
+        cm.set_boxes([])
+
+
+def test_start_with_the_elbow_grazing_an_obstacle_escapes_in_the_null_space(setup):
+    """The arm's self-motion (7 joints, 6-D pose) moves the elbow off an obstacle it grazes while
+    the hand, and anything it holds, stays where it is."""
+    kin, cm, planner = setup
+    q0 = np.array(Q_HOME, float)
+    S = cm.sphere_world(q0)
+    i = int(np.argmax(S[:, 1] + S[:, 3]))  # the robot's outermost point towards +y
+    assert cm.robot.group[i] < LINKS.index("panda_hand")  # an arm link, not the hand
+    c, r = S[i, :3], S[i, 3]
+    nick = _box("post", c + [0.0, r - 0.003 + 0.005, 0.0], [0.005, 0.005, 0.005])  # 3 mm into it
+    cm.set_boxes([nick])
+    try:
+        assert cm.in_collision(q0[None])[0]
+        res = planner.plan(q0, Pose([0.45, -0.25, 0.3], DOWN), timeout=5.0)
+        assert res.ok, res.message
+        assert "null space" in res.message
+        k = next(i for i, q in enumerate(res.joint_path) if not cm.in_collision(q[None])[0])
+        assert k >= 1 and np.abs(res.joint_path[k] - q0).max() <= 0.5
+        T0 = kin.fk(q0)
+        for q in res.joint_path[: k + 1]:  # the hand stays put while the elbow moves away
+            np.testing.assert_allclose(kin.fk(q)[:3, 3], T0[:3, 3], atol=1e-3)
+    finally:
+        cm.set_boxes([])

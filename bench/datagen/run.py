@@ -6,6 +6,8 @@ Quick look (minutes):
     .venv/bin/python bench/datagen/run.py --quick
 One part again, updating the JSON in place (e.g. the graph overhead: 3 pairs of 50 attempts):
     .venv/bin/python bench/datagen/run.py --only graph_overhead
+Some methods' cells again (the others and the extras stay as they are in the JSON):
+    .venv/bin/python bench/datagen/run.py --attempts 200 --workers 2 --methods skillgen skillgen+IA
 
 Success cells run in-process (SimGenerationEnv: the same Algorithm 1, dataset writer and seeds as
 the datagen node) with fixed seeds; the graph-overhead cell runs the same attempts through the
@@ -151,6 +153,8 @@ def main(argv=None) -> int:
     ap.add_argument("--tasks", nargs="*", default=list(CELLS_FULL))
     ap.add_argument("--skip-graph", action="store_true")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "datagen.json"))
+    ap.add_argument("--methods", nargs="+", default=[], choices=[_key(m, aug) for m, aug in METHODS] + ["replay_noise"],
+                    help="only (re)run these methods' cells, merge them into the JSON (no extras)")
     ap.add_argument("--only", nargs="+", default=[], choices=sorted(EXTRAS), metavar="PART",
                     help=f"only (re)measure these of {sorted(EXTRAS)} and update the JSON in place")
     a = ap.parse_args(argv)
@@ -172,9 +176,13 @@ def main(argv=None) -> int:
             for method, aug in METHODS:
                 jobs.append((task, variant, method, aug, n, a.seed, a.perception))
         jobs.append((task, "D0", "replay_noise", False, n, a.seed, a.perception))
+    if a.methods:
+        jobs = [j for j in jobs if _key(j[2], j[3]) in a.methods]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=a.workers) as pool:
         cells = list(pool.map(_star, jobs))
+    if a.methods:
+        return _merge(Path(a.out), cells, time.perf_counter() - t0)
     extra = {k: f(n, a.seed, a.perception) for k, f in EXTRAS.items() if not (k == "graph_overhead" and a.skip_graph)}
     summary = _summarize(cells)
     out = {"benchmark": "datagen", "rerun": " ".join(["python", "bench/datagen/run.py", *sys.argv[1:]]),
@@ -185,6 +193,28 @@ def main(argv=None) -> int:
     Path(a.out).write_text(json.dumps(out, indent=2))
     print(json.dumps(summary, indent=2))
     print(f"wrote {a.out}")
+    return 0
+
+
+def _key(method: str, augment: bool) -> str:
+    return method + ("+IA" if augment else "")
+
+
+def _merge(path: Path, cells: list, wall: float) -> int:
+    """Replace the matching cells of an existing JSON and recompute the summary."""
+    out = json.loads(path.read_text())
+    new = {(c["task"], c["variant"], c["method"], c["augment"]): c for c in cells}
+    for c in cells:
+        c["rerun"] = " ".join(["python", "bench/datagen/run.py", *sys.argv[1:]])
+        c["measured"] = time.strftime("%Y-%m-%d")
+    out["cells"] = [new.pop((c["task"], c["variant"], c["method"], c["augment"]), c) for c in out["cells"]]
+    out["cells"] += list(new.values())
+    out["summary"] = _summarize(out["cells"])
+    out.setdefault("partial_reruns", []).append({"command": cells[0]["rerun"] if cells else "", "cells": len(cells),
+                                                 "wall_seconds": wall, "date": time.strftime("%Y-%m-%d")})
+    path.write_text(json.dumps(out, indent=2))
+    print(json.dumps(out["summary"], indent=2))
+    print(f"merged {len(cells)} cells into {path}")
     return 0
 
 
@@ -199,7 +229,7 @@ def _summarize(cells) -> dict:
 
     out = {}
     for m, aug in METHODS + [("replay_noise", False)]:
-        key = m + ("+IA" if aug else "")
+        key = _key(m, aug)
         out[key] = {"all": avg(lambda c: c["method"] == m and c["augment"] == aug),
                     "D2": avg(lambda c: c["method"] == m and c["augment"] == aug and c["variant"] == "D2"),
                     "clutter": avg(lambda c: c["method"] == m and c["augment"] == aug and c["variant"] == "clutter")}

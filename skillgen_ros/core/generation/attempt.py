@@ -27,6 +27,7 @@ from ..skills.protocols import SkillLike, TaskLike
 from ..skills.segment import SourceDemo
 from ..skills.transform import matrix_to_array
 from .episode import Episode, EpisodeRecorder, Observation, StepLabel
+from .initiation import initiation_candidates
 from .seeds import attempt_rng, scene_seed
 from .selection import make_strategy
 
@@ -78,9 +79,13 @@ class GenerationConfig:
     max_steps: int = 3000  # total control steps before TIMEOUT
     time_limit_s: float | None = None  # wall time before TIMEOUT
     check_collisions: bool = True  # fail planned motions that the env reports as colliding
+    # skillgen: (source demo, symmetric object frame) pairs tried for a skill whose initiation pose
+    # has no collision-free IK (initiation.py); 1 = the paper (the attempt fails on the first).
+    initiation_candidates: int = 6
 
     def __post_init__(self):
-        if self.action_noise < 0 or self.interpolation_steps < 0 or self.fixed_steps < 0 or self.max_steps < 1:
+        if (self.action_noise < 0 or self.interpolation_steps < 0 or self.fixed_steps < 0 or self.max_steps < 1
+                or self.initiation_candidates < 1):
             raise InvalidInputError(f"invalid generation config {self}", reason="INVALID_PARAMETER")
 
 
@@ -112,10 +117,15 @@ def motion_failure(status) -> FailureReason | None:
     return _STATUS.get(name, FailureReason.PLAN_FAILED)
 
 
+# Planner answers that mean "this initiation pose cannot be reached" before anything moved.
+_GOAL_INFEASIBLE = {"GOAL_IN_COLLISION", "IK_FAILED", "NO_IK", "IK"}
+
+
 class _Fail(Exception):
-    def __init__(self, reason: FailureReason, message: str):
+    def __init__(self, reason: FailureReason, message: str, goal_infeasible: bool = False):
         super().__init__(message)
         self.reason = reason
+        self.goal_infeasible = goal_infeasible
 
 
 class _Attempt:
@@ -129,6 +139,7 @@ class _Attempt:
         self.rng_select = attempt_rng(seed, index, "selection")
         self.rng_noise = attempt_rng(seed, index, "noise")
         self.rng_aug = attempt_rng(seed, index, "augmentation")
+        self.rng_fallback = attempt_rng(seed, index, "initiation")
         self.strategy = make_strategy(config.selection, **config.selection_params)
         self.rec = EpisodeRecorder()
         self.timings = {k: 0.0 for k in ("reset", "perception", "motion", "skill", "success")}
@@ -210,7 +221,9 @@ class _Attempt:
             self.obs = nxt
         reason = motion_failure(status)
         if reason is not None:
-            raise _Fail(reason, f"motion to skill {skill.index} ({skill.mode}) failed: {getattr(status, 'name', status)}")
+            name = str(getattr(status, "name", status))
+            raise _Fail(reason, f"motion to skill {skill.index} ({skill.mode}) failed: {name}",
+                        goal_infeasible=not steps and name.upper() in _GOAL_INFEASIBLE)
         if self.cfg.check_collisions and self.env.collided():
             raise _Fail(FailureReason.EXECUTION_COLLISION, f"collision during the motion to skill {skill.index}")
         if not steps:
@@ -245,11 +258,22 @@ class _Attempt:
             self.check_skill(skill)
 
     def skillgen_skill(self, skill: SkillLike, seg, j: int, T_W_O: np.ndarray) -> None:
-        """Plan to T_W^{E_0'} (perturbed when augmenting), recover, replay T_W^{O'} T_O^{A_t}."""
-        init = seg.initiation_in_world(T_W_O)
-        goal = perturb_initiation(init, self.cfg.augmentation, self.rng_aug) if self.cfg.augment else init
-        goal7 = matrix_to_array(goal)
-        self.plan_motion(skill, goal, StepLabel(True, skill.index, j, goal7))
+        """Plan to T_W^{E_0'} (perturbed when augmenting), recover, replay T_W^{O'} T_O^{A_t}.
+        An initiation pose the planner cannot reach is swapped for the next candidate."""
+        candidates = list(initiation_candidates(self.demos, self.task, skill, j, T_W_O, self.rng_fallback,
+                                                self.cfg.initiation_candidates))
+        for k, (j, T_W_O) in enumerate(candidates):
+            seg = self.demos[j].skill(skill.index)
+            init = seg.initiation_in_world(T_W_O)
+            goal = perturb_initiation(init, self.cfg.augmentation, self.rng_aug) if self.cfg.augment else init
+            goal7 = matrix_to_array(goal)
+            try:
+                self.plan_motion(skill, goal, StepLabel(True, skill.index, j, goal7))
+                break
+            except _Fail as f:
+                if not f.goal_infeasible or k == len(candidates) - 1:
+                    raise
+        self.chosen[-1] = j
         if hasattr(self.env, "replay_skill"):
             return self.remote_skill(skill, j, T_W_O, goal7)
         cmds = plan_replay(seg, T_W_O, self.obs.ee_matrix(), self.cfg.augment, self.cfg.augmentation)

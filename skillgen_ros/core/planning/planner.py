@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import enum
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -165,8 +165,18 @@ class MotionPlanner:
         if not self.kin.within_limits(q0, tol=START_LIMIT_TOL):
             return fail(PlanStatus.INVALID_REQUEST, "start configuration outside joint limits")
         q0 = np.clip(q0, self.kin.lower, self.kin.upper)
+        escape, touching, notes = q0[None], (), []
         if collides(q0[None], allow_start)[0]:
-            return fail(PlanStatus.START_IN_COLLISION, "start configuration collides")
+            touching = self._touching_hand(q0, allow_start, collides)
+            if touching:  # the replayed skill left the hand against a fixture: back out along the retreat
+                allow_start = replace(allow_start, hand_object=allow_start.hand_names() + touching)
+                notes.append(f"start: hand touches {', '.join(touching)} (allowed on the retreat)")
+            else:
+                escape = self._null_space_escape(q0, lambda q: bool(collides(q[None], allow_start)[0]))
+                if escape is None:
+                    return fail(PlanStatus.START_IN_COLLISION, "start configuration collides")
+                notes.append(f"start in collision: moved {np.abs(escape[-1] - q0).max():.2f} rad in the null space")
+                q0 = escape[-1]
 
         # goal IK: first without collisions (reachability), then filter
         t = time.perf_counter()
@@ -189,11 +199,12 @@ class MotionPlanner:
         # retreat
         t = time.perf_counter()
         retreat_path = q0[None]
-        notes = []
         if retreat and self.retreat_distance > 0:
             why = None
             try:
                 retreat_path = cartesian_line(self.kin, self.ik, q0, -self.retreat_distance)
+                if touching and collides(retreat_path[-1:])[0]:  # still against the fixture: back out further
+                    retreat_path = cartesian_line(self.kin, self.ik, q0, -2 * self.retreat_distance, steps=20)
                 if not self._segment_free(retreat_path, edge_free, allow_start):
                     why = "retreat collides"
             except CartesianPathError as e:
@@ -210,6 +221,7 @@ class MotionPlanner:
                     if retreat_path is None:
                         return fail(PlanStatus.START_IN_COLLISION, why)
                     notes.append(f"{why}; retreat shortened to where IK held the line")
+        retreat_path = np.vstack([escape[:-1], retreat_path])
         timings["retreat"] = time.perf_counter() - t
 
         # approach, computed backwards from each goal candidate until one is clear
@@ -267,6 +279,39 @@ class MotionPlanner:
         timings["total"] = time.perf_counter() - t_all
         return PlanResult(PlanStatus.SUCCESS, traj, path, segments, timings,
                           "; ".join([f"{len(path)} waypoints, {traj.duration:.2f} s"] + notes))
+
+    def _touching_hand(self, q0, allow, collides) -> tuple[str, ...]:
+        """Scene boxes whose contact with the hand alone makes the start collide (empty if allowing
+        every hand contact would still leave it colliding: then the arm or the held object hits)."""
+        names = tuple(dict.fromkeys(b.name for b in self.cm.boxes if b.name not in allow.hand_names()))
+        if not names or collides(q0[None], replace(allow, hand_object=allow.hand_names() + names))[0]:
+            return ()
+        return tuple(n for n in names
+                     if collides(q0[None], replace(allow, hand_object=allow.hand_names() + tuple(m for m in names if m != n)))[0])
+
+    def _null_space_escape(self, q0, collides, step: float = 0.02, reach: float = 0.5) -> np.ndarray | None:
+        """A start in collision (the elbow grazing an obstacle after a replayed skill, inside the
+        spheres' padding) moved along the arm's self-motion, which keeps the hand -- and what it
+        holds -- where it is, until it is clear. MoveIt's FixStartStateCollision jiggles the joints
+        at random instead; that would drag a grasped object. Returns the path (q0 first) or None."""
+        T0 = self.kin.fk(q0)
+        best = None
+        for sign in (1.0, -1.0):
+            path, q, prev = [q0], q0, None
+            for _ in range(int(2 * reach / step)):  # a step blocked at a joint limit makes no progress
+                J = self.kin.jacobian(q)
+                n = np.linalg.svd(J)[2][-1]  # the 7-DOF arm's one null-space direction
+                n = n * (sign if prev is None else np.sign(n @ prev) or 1.0)
+                prev = n
+                q = self.ik.solve_local(T0, q + step * n / np.abs(n).max())
+                if q is None or not self.kin.within_limits(q) or np.abs(q - q0).max() > reach:
+                    break
+                path.append(q)
+                if not collides(q):
+                    if best is None or len(path) < len(best):
+                        best = path
+                    break
+        return None if best is None else np.array(best)
 
     @staticmethod
     def _segment_free(path: np.ndarray, edge_free, allow) -> bool:

@@ -1,0 +1,112 @@
+"""Initiation candidates: symmetric object frames, grasp-compatible source demos, and the attempt's
+fallback to them when a skill's initiation pose is unreachable (GOAL_IN_COLLISION / IK_FAILED)."""
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pytest
+from _generation_fakes import FakeTask, FakeWorld, make_source_demos
+from scipy.spatial.transform import Rotation
+
+from skillgen_ros.core.generation.attempt import FailureReason, GenerationConfig, run_attempt
+from skillgen_ros.core.generation.initiation import (grasp_in_demo, initiation_candidates, same_grasp,
+                                                     symmetry_frames)
+
+CFG = GenerationConfig(variant="D1")
+
+
+@dataclass(frozen=True)
+class SymObject:
+    id: str
+    symmetry: str
+
+
+@pytest.fixture(scope="module")
+def demos():
+    return make_source_demos(3)
+
+
+def _yaw(T):
+    return Rotation.from_matrix(T[:3, :3]).as_euler("xyz")[2]
+
+
+def test_symmetry_frames_turn_about_the_object_z():
+    T = np.eye(4)
+    T[:3, 3] = [0.5, 0.1, 0.05]
+    frames = symmetry_frames(T, "z4")
+    assert len(frames) == 3 and symmetry_frames(T, "none") == [] and len(symmetry_frames(T, "z_continuous")) == 7
+    np.testing.assert_allclose([abs(_yaw(F)) for F in frames], [np.pi / 2, np.pi, np.pi / 2], atol=1e-9)
+    for F in frames:  # same origin and z axis: the same physical object
+        np.testing.assert_allclose(F[:3, 3], T[:3, 3])
+        np.testing.assert_allclose(F[:3, 2], T[:3, 2], atol=1e-12)
+
+
+def test_candidates_order_and_grasp_compatibility(demos):
+    T = np.eye(4)
+    task = FakeTask(objects=(SymObject("cube", "none"), SymObject("plate", "z4")))
+    place = task.skills[1]
+    got = list(initiation_candidates(demos, task, place, 1, T, np.random.default_rng(0), limit=20))
+    # the selected demo in the estimated frame first, then its symmetric frames, then the other demos
+    assert got[0][0] == 1 and np.allclose(got[0][1], T)
+    assert [j for j, _ in got[:4]] == [1, 1, 1, 1] and sorted({j for j, _ in got[4:]}) == [0, 2]
+    assert len(got) == 12
+    assert len(list(initiation_candidates(demos, task, place, 1, T, np.random.default_rng(0), limit=5))) == 5
+    # the scripted demos grasp the cube the same way; a demo holding it turned 90 deg is not offered
+    g = grasp_in_demo(demos[0], 1, "cube")
+    assert g is not None and same_grasp(g, grasp_in_demo(demos[2], 1, "cube"))
+    turned = np.eye(4)
+    turned[:3, :3] = Rotation.from_euler("z", np.pi / 2).as_matrix()
+    assert not same_grasp(g, g @ turned) and grasp_in_demo(demos[0], 0, "cube") is None
+    skill0 = demos[2].skills[0]
+    odd = replace(demos[2], skills=(replace(skill0, ee_poses_in_object=skill0.ee_poses_in_object @ turned),)
+                  + tuple(demos[2].skills[1:]))
+    got = list(initiation_candidates([demos[0], demos[1], odd], task, place, 1, T, np.random.default_rng(0), 20))
+    assert {j for j, _ in got} == {0, 1}
+
+
+class GoalBlockedOnce(FakeWorld):
+    """The first transfer target is in collision (nothing moves); any other one is fine."""
+
+    def __init__(self, status="GOAL_IN_COLLISION", **kw):
+        super().__init__(**kw)
+        self.blocked, self.status, self.targets = True, status, []
+
+    def plan_and_execute(self, target, mode, attached):
+        self.targets.append(target.matrix())
+        if mode == "transfer" and self.blocked:
+            self.blocked = False
+            self.calls.append(f"plan:{mode}:{attached}")
+            return self.status, []
+        return super().plan_and_execute(target, mode, attached)
+
+
+def test_attempt_falls_back_to_another_source_demo(demos):
+    env = GoalBlockedOnce()
+    r = run_attempt(env, demos, FakeTask(), "skillgen", 0, 5, CFG)
+    assert r.success, r.message
+    assert env.calls.count("plan:transfer:cube") == 2
+    assert r.source_demos[0] != r.source_demos[1]  # no symmetric frames here: the next candidate is another demo
+    lab = r.episode.labels
+    place = lab["skill_index"] == 1
+    assert (lab["source_demo"][place] == r.source_demos[1]).all()
+    assert not np.allclose(env.targets[1], env.targets[2])  # a different initiation pose was tried
+    # the paper's behaviour (one candidate) fails the attempt on the first unreachable pose
+    r1 = run_attempt(GoalBlockedOnce(), demos, FakeTask(), "skillgen", 0, 5, replace(CFG, initiation_candidates=1))
+    assert r1.reason is FailureReason.PLAN_FAILED
+    # an IK failure is retried too; a planner timeout (the goal was fine) is not
+    assert run_attempt(GoalBlockedOnce("IK_FAILED"), demos, FakeTask(), "skillgen", 0, 5, CFG).success
+    r2 = run_attempt(GoalBlockedOnce("PLAN_TIMEOUT"), demos, FakeTask(), "skillgen", 0, 5, CFG)
+    assert r2.reason is FailureReason.PLAN_FAILED
+
+
+def test_fallback_is_deterministic(demos):
+    a = run_attempt(GoalBlockedOnce(), demos, FakeTask(), "skillgen", 3, 9, CFG)
+    b = run_attempt(GoalBlockedOnce(), demos, FakeTask(), "skillgen", 3, 9, CFG)
+    assert a.source_demos == b.source_demos
+    np.testing.assert_array_equal(a.episode.actions, b.episode.actions)
+
+
+def test_config_rejects_zero_candidates():
+    from skillgen_ros.core.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError):
+        GenerationConfig(initiation_candidates=0)

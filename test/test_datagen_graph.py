@@ -66,6 +66,7 @@ def test_bad_requests_are_rejected_with_a_reason(graph, tmp_path):
         (dict(task="NoSuchTask"), "UNKNOWN_TASK"),
         (dict(method="teleport"), "UNKNOWN_METHOD"),
         (dict(attempts=0), "INVALID_ATTEMPTS"),
+        (dict(initiation_candidates=-2), "INVALID_PARAMETER"),
         (dict(output_dir="/proc/skillgen_cannot_write_here"), "UNWRITABLE_OUTPUT"),
         (dict(output_dir=str(existing)), "OUTPUT_EXISTS"),
         (dict(source_demos=str(tmp_path / "empty")), "NO_SOURCE_DEMOS"),

@@ -29,7 +29,9 @@ def test_wilson_edge_cases():
 def test_paper_table():
     assert paper_rate("square", "D2", "skillgen") == 87.7 and paper_rate("square", "D2", "mimicgen") == 31.8
     assert paper_rate("square", "D0", "skillgen", augment=True) == 30.7
-    assert paper_rate("coffee", "clutter", "skillgen") == pytest.approx(52.0)
+    assert paper_rate("coffee", "clutter", "skillgen") == pytest.approx(55.0)  # the D1-clutter row
+    assert paper_rate("square", "clutter", "skillgen") == pytest.approx(62.5)
+    assert paper_rate("square", "clutter", "mimicgen") == pytest.approx(4.0)
     assert paper_rate("square", "D0", "replay_noise") is None
     assert paper_rate("NutAssembly", "D1", "skillgen") == 91.7  # the task suite's CamelCase name
     core = [v["skillgen"] for (t, var), v in PAPER_RATES.items() if var in ("D0", "D1", "D2")]

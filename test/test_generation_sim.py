@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from skillgen_ros.core.dataset.hdf5 import merge_datasets, validate_dataset
+from skillgen_ros.core.dataset.hdf5 import merge_datasets
 from skillgen_ros.core.generation.session import RunRequest, run_generation
 from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
 from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos

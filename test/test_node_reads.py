@@ -37,3 +37,20 @@ def test_latest_message_takes_the_newest_on_demand(ros_node):
         assert newer is not None and newer.data == 4 and reader.count > count
     finally:
         reader.destroy()
+
+
+def test_latest_message_follows_its_owners_remaps(ros_node):
+    import rclpy
+
+    owner = rclpy.create_node("remapped_owner", namespace="/w1", context=ros_node.context,
+                              cli_args=["--ros-args", "-r", "numbers:=counts"])
+    pub = ros_node.create_publisher(Int32, "/w1/counts", 10)
+    reader = LatestMessage(owner, Int32, "numbers")
+    try:
+        assert reader.topic == "/w1/counts"
+        assert wait_for(lambda: pub.get_subscription_count() > 0, 10)
+        pub.publish(Int32(data=7))
+        assert wait_for(lambda: (m := reader.latest()) is not None and m.data == 7, 5)
+    finally:
+        reader.destroy()
+        owner.destroy_node()

@@ -209,6 +209,10 @@ def _merge(path: Path, cells: list, wall: float) -> int:
         c["measured"] = time.strftime("%Y-%m-%d")
     out["cells"] = [new.pop((c["task"], c["variant"], c["method"], c["augment"]), c) for c in out["cells"]]
     out["cells"] += list(new.values())
+    from skillgen_ros.core.dataset.paper import paper_rate
+
+    for c in out["cells"]:  # the comparison table may have changed since the others ran
+        c["paper_rate"] = paper_rate(c["task"], c["variant"], c["method"], c["augment"])
     out["summary"] = _summarize(out["cells"])
     out.setdefault("partial_reruns", []).append({"command": cells[0]["rerun"] if cells else "", "cells": len(cells),
                                                  "wall_seconds": wall, "date": time.strftime("%Y-%m-%d")})

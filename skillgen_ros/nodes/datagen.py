@@ -82,7 +82,7 @@ class DatagenNode(Node):
                           augment_rotation_deg=float(g.augment_rotation_deg or 80.0),
                           action_noise=float(self.get_parameter("action_noise").value),
                           selection=g.selection or "random", output_dir=out, source_demos=g.source_demos,
-                          **_video_attempts(g))
+                          **_video_attempts(g), **_initiation_candidates(g))
 
     def _demos(self, req: RunRequest):
         d = req.source_demos or str(Path(str(self.get_parameter("demos_dir").value)) / req.task)
@@ -202,6 +202,13 @@ def _video_attempts(g) -> dict:
     """RunRequest's video_attempts from a goal's (-1 or absent: keep RunRequest's default)."""
     n = int(getattr(g, "video_attempts", -1))
     return {"video_attempts": n} if n >= 0 else {}
+
+
+def _initiation_candidates(g) -> dict:
+    """RunRequest's initiation_candidates from a goal's (0 or absent: keep the default; < 0 is
+    passed on so that validation rejects it with a reason)."""
+    n = int(getattr(g, "initiation_candidates", 0))
+    return {"initiation_candidates": n} if n != 0 else {}
 
 
 def main(args=None) -> int:

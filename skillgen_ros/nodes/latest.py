@@ -5,8 +5,9 @@ woken for every message: in lockstep the driver publishes hundreds of periods a 
 2-core machine each wakeup of a Python executor costs about a millisecond of someone's time.
 `LatestMessage` keeps a depth-1 KEEP_LAST reader on a private node that no executor spins; the
 middleware retains the newest sample, and `latest()` / `wait_newer()` take it on demand from the
-caller's thread. Topic names resolve in the owner's namespace, and global remaps apply, as for
-any subscription of the owner.
+caller's thread. The topic name is resolved by the owner (its namespace and every remap that
+applies to it, node-targeted ones included), and the private node takes no command-line
+arguments, so a `__node:=` rename meant for the owner does not also rename it.
 
 `wait_future` is the same idea for an rclpy future (a service answer, an action result): a worker
 thread blocks on it while the executor's threads complete it.
@@ -31,8 +32,10 @@ class LatestMessage:
         profile = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=base.reliability,
                              durability=base.durability)
         self._node = rclpy.create_node(f"{owner.get_name()}_pull_{next(_ids)}", namespace=owner.get_namespace(),
-                                       context=owner.context, start_parameter_services=False)
-        self._node.create_subscription(msg_type, topic, self._on_msg, profile)
+                                       context=owner.context, start_parameter_services=False,
+                                       use_global_arguments=False)
+        self.topic = owner.resolve_topic_name(topic)
+        self._node.create_subscription(msg_type, self.topic, self._on_msg, profile)
         self._exec = SingleThreadedExecutor(context=owner.context)
         self._exec.add_node(self._node)
         self._lock = threading.Lock()  # one puller at a time

@@ -23,7 +23,8 @@ def make_env_args(task: str, variant: str, method: str, seed: int, config: Gener
                        "selection": config.selection, "augment": config.augment,
                        "augment_translation": config.augmentation.translation,
                        "augment_rotation_deg": config.augmentation.rotation_deg,
-                       "interpolation_steps": config.interpolation_steps, "fixed_steps": config.fixed_steps},
+                       "interpolation_steps": config.interpolation_steps, "fixed_steps": config.fixed_steps,
+                       "initiation_candidates": config.initiation_candidates},
     }
 
 

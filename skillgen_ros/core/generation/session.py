@@ -42,12 +42,13 @@ class RunRequest:
     source_demos: str = ""  # directory of source bags; "" = bags/<task>
     max_steps: int = 3000
     video_attempts: int = 4  # attempts captured into the MP4 (successes and failures)
+    initiation_candidates: int = 6  # skillgen: initiation poses tried per skill (1 = the paper)
 
     def config(self) -> GenerationConfig:
         return GenerationConfig(variant=self.variant, action_noise=self.action_noise, selection=self.selection,
                                 augment=self.augment,
                                 augmentation=AugmentationConfig(self.augment_translation, self.augment_rotation_deg),
-                                max_steps=self.max_steps)
+                                max_steps=self.max_steps, initiation_candidates=self.initiation_candidates)
 
 
 def validate_request(req: RunRequest, known_tasks: Sequence[str]) -> None:

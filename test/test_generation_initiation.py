@@ -110,3 +110,35 @@ def test_config_rejects_zero_candidates():
 
     with pytest.raises(InvalidInputError):
         GenerationConfig(initiation_candidates=0)
+
+
+class SlowFingers(FakeWorld):
+    """The hand starts half closed and opens 1 cm per control period (as after a release)."""
+
+    def reset(self, task, variant, seed):
+        out = super().reset(task, variant, seed)
+        self.width = 0.03
+        return out
+
+    def observe(self):
+        obs = super().observe()
+        if self.grip < 0:
+            obs = replace(obs, gripper=np.full(2, self.width / 2))
+        return obs
+
+    def step(self, target, gripper):
+        if gripper < 0:
+            self.width = min(0.08, self.width + 0.01)
+        return super().step(target, gripper)
+
+
+def test_planned_motion_waits_for_an_opening_gripper(demos):
+    r = run_attempt(SlowFingers(), demos, FakeTask(), "skillgen", 0, 5, CFG)
+    assert r.success, r.message
+    lab = r.episode.labels
+    held = np.flatnonzero(lab["mp_step"].astype(bool))[:5]  # 0.03 -> 0.08 m: five hold periods first
+    np.testing.assert_allclose(r.episode.obs["robot0_eef_pos"][held], r.episode.obs["robot0_eef_pos"][held[:1]].repeat(5, 0))
+    assert (r.episode.actions[held, :6] == 0).all() and (r.episode.actions[held, 6] == -1).all()
+    assert r.episode.num_samples == run_attempt(FakeWorld(), demos, FakeTask(), "skillgen", 0, 5, CFG).episode.num_samples + 5
+    none = run_attempt(SlowFingers(), demos, FakeTask(), "skillgen", 0, 5, replace(CFG, settle_steps=0))
+    assert none.episode.num_samples == r.episode.num_samples - 5

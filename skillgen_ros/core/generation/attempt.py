@@ -32,6 +32,7 @@ from .seeds import attempt_rng, scene_seed
 from .selection import make_strategy
 
 METHODS = ("skillgen", "mimicgen", "replay_noise")
+OPEN_WIDTH = 0.075  # m between the fingers: the Panda hand opens to 0.08
 
 
 class FailureReason(str, enum.Enum):
@@ -82,10 +83,13 @@ class GenerationConfig:
     # skillgen: (source demo, symmetric object frame) pairs tried for a skill whose initiation pose
     # has no collision-free IK (initiation.py); 1 = the paper (the attempt fails on the first).
     initiation_candidates: int = 6
+    # skillgen: control periods to hold still, before a planned motion, while a gripper that was
+    # commanded open is still opening (the fast retreat would drag the object just released)
+    settle_steps: int = 10
 
     def __post_init__(self):
         if (self.action_noise < 0 or self.interpolation_steps < 0 or self.fixed_steps < 0 or self.max_steps < 1
-                or self.initiation_candidates < 1):
+                or self.initiation_candidates < 1 or self.settle_steps < 0):
             raise InvalidInputError(f"invalid generation config {self}", reason="INVALID_PARAMETER")
 
 
@@ -230,6 +234,19 @@ class _Attempt:
             self.obs = self.env.observe()
         self._budget()
 
+    def settle_gripper(self, label: StepLabel) -> None:
+        """Hold the pose while an opening gripper is still opening (<= settle_steps periods)."""
+        if self.gripper > 0:
+            return
+        hold, width = self.obs.ee_matrix(), float(np.sum(self.obs.gripper))
+        for _ in range(self.cfg.settle_steps):
+            if width >= OPEN_WIDTH:
+                return
+            self._step(hold, self.gripper, 0.0, label)
+            width, before = float(np.sum(self.obs.gripper)), width
+            if abs(width - before) < 5e-4:  # stopped: open as far as it goes
+                return
+
     def replay(self, targets: np.ndarray, gripper: np.ndarray, label: StepLabel, sigma: float) -> None:
         t = time.perf_counter()
         try:
@@ -262,6 +279,7 @@ class _Attempt:
         An initiation pose the planner cannot reach is swapped for the next candidate."""
         candidates = list(initiation_candidates(self.demos, self.task, skill, j, T_W_O, self.rng_fallback,
                                                 self.cfg.initiation_candidates))
+        self.settle_gripper(StepLabel(True, skill.index, j, matrix_to_array(seg.initiation_in_world(T_W_O))))
         for k, (j, T_W_O) in enumerate(candidates):
             seg = self.demos[j].skill(skill.index)
             init = seg.initiation_in_world(T_W_O)

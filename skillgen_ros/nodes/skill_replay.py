@@ -13,10 +13,8 @@ Feedback every step (at most feedback_hz per wall second: every step in real tim
 lockstep); the result carries every executed step, so datagen can write the dataset.
 
 The step loop is the graph's hot path (one round trip per control period), so the node runs on a
-SingleThreadedExecutor: the action is a coroutine that awaits the end of its goal, and each step's
-command goes out from the joint_states callback that ends the previous step (`_StepLoop`), so a
-period costs the executor one callback here, not a callback plus a task wake-up. No thread pool,
-no busy wait set (a MultiThreadedExecutor spun a whole core here while a goal blocked).
+SingleThreadedExecutor and the action is a coroutine that awaits the next joint state: no thread
+pool, no busy wait set (a MultiThreadedExecutor spun a whole core here while a goal blocked).
 
 Service `~/load_demos` loads a task's demos ahead of a run (datagen calls it before the first attempt).
 Parameters (params/skill_replay.yaml): demos_dir, action_noise, step_timeout, frame_id, feedback_hz.
@@ -67,7 +65,6 @@ class SkillReplayNode(Node):
         self._index: tuple[tuple, list[int], list[int]] | None = None  # (names, arm idx, finger idx)
         self._waiter: tuple[int, Future] | None = None  # (state count to exceed, future the goal awaits)
         self._deadline = float("inf")
-        self._loop: _StepLoop | None = None  # the goal being replayed
         self.create_subscription(JointState, "joint_states", self._on_joints, 10)  # arm + fingers
         self.osc_pub = self.create_publisher(OscTarget, "osc_target", 10)
         self._busy = False
@@ -88,9 +85,6 @@ class SkillReplayNode(Node):
         self._state_count += 1
         if self._waiter is not None and self._state_count > self._waiter[0]:
             self._resolve(msg)
-        loop = self._loop
-        if loop is not None and self._state_count > loop.after:
-            loop.on_state(msg)  # the next command goes out from this callback: no task hop per step
 
     def _unpack(self, msg: JointState) -> tuple[np.ndarray, float, np.ndarray]:
         """(arm q, gripper width, T_W_EE by FK) of a joint_states message _on_joints accepted."""
@@ -108,9 +102,6 @@ class SkillReplayNode(Node):
     def _on_watchdog(self):
         if self._waiter is not None and time.monotonic() > self._deadline:
             self._resolve(None)
-        loop = self._loop
-        if loop is not None and time.monotonic() > loop.deadline:
-            loop.finish("TIMEOUT", f"driver did not step within {loop.timeout} s at step {loop.k - 1}")
 
     async def _wait_state(self, after: int, timeout: float) -> JointState | None:
         """The first joint state after the `after`-th one, or None after `timeout` s (watchdog)."""
@@ -186,22 +177,40 @@ class SkillReplayNode(Node):
             state = await self._wait_state(0, timeout)
             if state is None:
                 return finish(False, "TIMEOUT", "no joint_states from the driver")
-        plan = plan_replay(seg, T_W_O, self._unpack(state)[2], recovery=bool(g.recovery))
-        loop = _StepLoop(self, goal_handle, plan, rng, sigma, frame, timeout, feedback)
-        self._loop = loop
-        try:
-            loop.on_state(state)
-            reason, message = await loop.done
-        finally:
-            self._loop = None
-        self._fill(res, *loop.recorded())
-        if reason == "CANCELED":
-            goal_handle.canceled()
-            res.reason, res.message = reason, message
-            return res
-        if reason != "OK":
-            return finish(False, reason, message)
-        return finish(True, "OK", f"replayed skill {g.skill_index} of demo {j} ({len(plan.targets)} steps)")
+        q, width, current = self._unpack(state)
+        plan = plan_replay(seg, T_W_O, current, recovery=bool(g.recovery))
+        actions, abs_, ees, qs, widths = [], [], [], [], []
+        n = len(plan.targets)
+        for k in range(n):
+            if goal_handle.is_cancel_requested:  # the steps done so far still come back
+                self._fill(res, actions, abs_, ees, qs, widths, plan.recovery[:k])
+                goal_handle.canceled()
+                res.reason, res.message = "CANCELED", f"canceled at step {k}"
+                return res
+            count = self._state_count
+            noise = 0.0 if plan.recovery[k] else sigma
+            a, commanded = make_action(plan.targets[k], current, float(plan.gripper[k]), noise, rng)
+            msg = OscTarget()
+            msg.header.frame_id = frame
+            msg.header.stamp = self.get_clock().now().to_msg()
+            msg.pose = convert.pose_to_msg(Pose.from_matrix(commanded))
+            msg.gripper = float(plan.gripper[k])
+            actions.append(a)
+            abs_.append(np.concatenate([matrix_to_array(commanded), [plan.gripper[k]]]))
+            ees.append(matrix_to_array(current))
+            qs.append(q)
+            widths.append(width)
+            self.osc_pub.publish(msg)
+            state = await self._wait_state(count, timeout)
+            if state is None:
+                self._fill(res, actions, abs_, ees, qs, widths, plan.recovery[:k + 1])
+                return finish(False, "TIMEOUT", f"driver did not step within {timeout} s at step {k}")
+            q, width, current = self._unpack(state)
+            if feedback.due(k == n - 1):
+                goal_handle.publish_feedback(ReplaySkill.Feedback(
+                    step=k + 1, total_steps=n, stage="recovery" if plan.recovery[k] else "skill"))
+        self._fill(res, actions, abs_, ees, qs, widths, plan.recovery)
+        return finish(True, "OK", f"replayed skill {g.skill_index} of demo {j} ({n} steps)")
 
     @staticmethod
     def _fill(res, actions, abs_, ees, qs, widths, recovery):
@@ -212,59 +221,6 @@ class SkillReplayNode(Node):
         res.joint_positions = np.asarray(qs, float).reshape(-1).tolist()
         res.gripper_widths = [float(w) for w in widths]
         res.recovery_steps = [bool(r) for r in recovery]
-
-
-class _StepLoop:
-    """One goal's step loop, driven by joint_states: each new state records the step it ends and
-    sends the next command from inside the subscription callback. (Awaiting a future per step
-    cost the executor one more wait-set pass per control period: the task wakes a spin later.)
-    `done` resolves once, with (reason, message)."""
-
-    def __init__(self, node: SkillReplayNode, goal_handle, plan, rng, sigma: float, frame: str, timeout: float,
-                 feedback: FeedbackThrottle):
-        self.node, self.goal_handle, self.plan, self.rng = node, goal_handle, plan, rng
-        self.sigma, self.frame, self.timeout, self.feedback = sigma, frame, timeout, feedback
-        self.k = 0  # commands sent
-        self.after = node._state_count  # the state that ends step k-1 is the first after this count
-        self.deadline = float("inf")
-        self.done = Future()
-        self.actions, self.abs_, self.ees, self.qs, self.widths = [], [], [], [], []
-
-    def on_state(self, state: JointState) -> None:
-        if self.done.done():
-            return
-        q, width, current = self.node._unpack(state)
-        n = len(self.plan.targets)
-        if self.k > 0 and self.feedback.due(self.k == n):
-            self.goal_handle.publish_feedback(ReplaySkill.Feedback(
-                step=self.k, total_steps=n, stage="recovery" if self.plan.recovery[self.k - 1] else "skill"))
-        if self.k == n:
-            return self.finish("OK", "")
-        if self.goal_handle.is_cancel_requested:
-            return self.finish("CANCELED", f"canceled at step {self.k}")
-        k = self.k
-        noise = 0.0 if self.plan.recovery[k] else self.sigma
-        a, commanded = make_action(self.plan.targets[k], current, float(self.plan.gripper[k]), noise, self.rng)
-        msg = OscTarget()
-        msg.header.frame_id = self.frame
-        msg.header.stamp = self.node.get_clock().now().to_msg()
-        msg.pose = convert.pose_to_msg(Pose.from_matrix(commanded))
-        msg.gripper = float(self.plan.gripper[k])
-        self.actions.append(a)
-        self.abs_.append(np.concatenate([matrix_to_array(commanded), [self.plan.gripper[k]]]))
-        self.ees.append(matrix_to_array(current))
-        self.qs.append(q)
-        self.widths.append(width)
-        self.after, self.deadline, self.k = self.node._state_count, time.monotonic() + self.timeout, k + 1
-        self.node.osc_pub.publish(msg)
-
-    def finish(self, reason: str, message: str) -> None:
-        if not self.done.done():
-            self.deadline = float("inf")
-            self.done.set_result((reason, message))
-
-    def recorded(self):
-        return self.actions, self.abs_, self.ees, self.qs, self.widths, self.plan.recovery[:len(self.actions)]
 
 
 def main(args=None) -> int:

@@ -238,14 +238,17 @@ class _Attempt:
         """Hold the pose while an opening gripper is still opening (<= settle_steps periods)."""
         if self.gripper > 0:
             return
-        hold, width = self.obs.ee_matrix(), float(np.sum(self.obs.gripper))
-        for _ in range(self.cfg.settle_steps):
-            if width >= OPEN_WIDTH:
-                return
-            self._step(hold, self.gripper, 0.0, label)
-            width, before = float(np.sum(self.obs.gripper)), width
-            if abs(width - before) < 5e-4:  # stopped: open as far as it goes
-                return
+        hold, width, t = self.obs.ee_matrix(), float(np.sum(self.obs.gripper)), time.perf_counter()
+        try:
+            for _ in range(self.cfg.settle_steps):
+                if width >= OPEN_WIDTH:
+                    return
+                self._step(hold, self.gripper, 0.0, label)
+                width, before = float(np.sum(self.obs.gripper)), width
+                if abs(width - before) < 5e-4:  # stopped: open as far as it goes
+                    return
+        finally:
+            self._timed("motion", t)
 
     def replay(self, targets: np.ndarray, gripper: np.ndarray, label: StepLabel, sigma: float) -> None:
         t = time.perf_counter()

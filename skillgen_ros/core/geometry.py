@@ -6,6 +6,7 @@ scipy.spatial.transform.Rotation; nothing here hand-rolls quaternion algebra.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import Enum
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -119,3 +120,35 @@ def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
     """Geodesic angle (rad) between two rotation matrices."""
     c = (np.trace(np.asarray(R_a).T @ np.asarray(R_b)) - 1.0) / 2.0
     return float(np.arccos(np.clip(c, -1.0, 1.0)))
+
+
+class Symmetry(str, Enum):
+    """Rotational symmetry about the object's z axis through its frame origin."""
+
+    NONE = "none"
+    Z2 = "z2"
+    Z4 = "z4"
+    Z_CONTINUOUS = "z_continuous"
+
+    @property
+    def order(self) -> int:
+        """Number of discrete symmetric yaws (0 for continuous)."""
+        return {"none": 1, "z2": 2, "z4": 4, "z_continuous": 0}[self.value]
+
+    @property
+    def yaw_period(self) -> float:
+        """Yaw range (rad) that holds one representative of every distinct pose."""
+        return 0.0 if self.order == 0 else 2 * np.pi / self.order
+
+    def rotations(self) -> list[np.ndarray]:
+        """The discrete group elements as 3x3 matrices (identity only for continuous)."""
+        k = max(self.order, 1)
+        return [Rotation.from_euler("z", 2 * np.pi * i / k).as_matrix() for i in range(k)]
+
+    @staticmethod
+    def parse(value) -> "Symmetry":
+        try:
+            return value if isinstance(value, Symmetry) else Symmetry(str(value).lower())
+        except ValueError:
+            raise InvalidInputError(f"unknown symmetry {value!r}; expected one of "
+                                    f"{[s.value for s in Symmetry]}") from None

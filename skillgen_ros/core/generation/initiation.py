@@ -20,18 +20,19 @@ from typing import Iterator, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..geometry import Symmetry, rotation_angle
 from ..skills.protocols import SkillLike, TaskLike
 from ..skills.segment import SourceDemo
 
-# Yaw steps that map each symmetry class onto itself (continuous symmetry: sampled every 45 deg).
-SYMMETRY_YAWS = {"z2": 2, "z4": 4, "z_continuous": 8}
+CONTINUOUS_YAWS = 8  # a round peg: its continuous symmetry sampled every 45 deg
 GRASP_TOL_M = 0.015  # two demos hold the object "the same way" within these
 GRASP_TOL_RAD = np.radians(20.0)
 
 
 def symmetry_frames(T_W_O: np.ndarray, symmetry: str) -> list[np.ndarray]:
     """T_W^{O'} turned about its own z by the symmetry group's other elements (identity excluded)."""
-    n = SYMMETRY_YAWS.get(symmetry, 1)
+    sym = Symmetry.parse(symmetry)
+    n = CONTINUOUS_YAWS if sym is Symmetry.Z_CONTINUOUS else sym.order
     out = []
     for k in range(1, n):
         R = np.eye(4)
@@ -51,8 +52,7 @@ def grasp_in_demo(demo: SourceDemo, skill_index: int, held: str) -> np.ndarray |
 def same_grasp(a: np.ndarray | None, b: np.ndarray | None) -> bool:
     if a is None or b is None:
         return a is None and b is None
-    ang = Rotation.from_matrix(a[:3, :3].T @ b[:3, :3]).magnitude()
-    return bool(np.linalg.norm(a[:3, 3] - b[:3, 3]) < GRASP_TOL_M and ang < GRASP_TOL_RAD)
+    return bool(np.linalg.norm(a[:3, 3] - b[:3, 3]) < GRASP_TOL_M and rotation_angle(a[:3, :3], b[:3, :3]) < GRASP_TOL_RAD)
 
 
 def initiation_candidates(demos: Sequence[SourceDemo], task: TaskLike, skill: SkillLike, selected: int,

@@ -8,47 +8,14 @@ from the task's OBJ meshes and reused for every frame.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import Enum
 from pathlib import Path
 
 import numpy as np
 import open3d as o3d
 from scipy.spatial import cKDTree
-from scipy.spatial.transform import Rotation
 
 from ..errors import InvalidInputError
-
-
-class Symmetry(str, Enum):
-    """Rotational symmetry about the object's z axis through its frame origin."""
-
-    NONE = "none"
-    Z2 = "z2"
-    Z4 = "z4"
-    Z_CONTINUOUS = "z_continuous"
-
-    @property
-    def order(self) -> int:
-        """Number of discrete symmetric yaws (0 for continuous)."""
-        return {"none": 1, "z2": 2, "z4": 4, "z_continuous": 0}[self.value]
-
-    @property
-    def yaw_period(self) -> float:
-        """Yaw range (rad) that holds one representative of every distinct pose."""
-        return 0.0 if self.order == 0 else 2 * np.pi / self.order
-
-    def rotations(self) -> list[np.ndarray]:
-        """The discrete group elements as 3x3 matrices (identity only for continuous)."""
-        k = max(self.order, 1)
-        return [Rotation.from_euler("z", 2 * np.pi * i / k).as_matrix() for i in range(k)]
-
-    @staticmethod
-    def parse(value) -> "Symmetry":
-        try:
-            return value if isinstance(value, Symmetry) else Symmetry(str(value).lower())
-        except ValueError:
-            raise InvalidInputError(f"unknown symmetry {value!r}; expected one of "
-                                    f"{[s.value for s in Symmetry]}") from None
+from ..geometry import Symmetry  # noqa: F401  (re-exported: perception speaks of model symmetry)
 
 
 @dataclass(frozen=True, eq=False)

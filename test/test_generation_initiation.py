@@ -142,3 +142,36 @@ def test_planned_motion_waits_for_an_opening_gripper(demos):
     assert r.episode.num_samples == run_attempt(FakeWorld(), demos, FakeTask(), "skillgen", 0, 5, CFG).episode.num_samples + 5
     none = run_attempt(SlowFingers(), demos, FakeTask(), "skillgen", 0, 5, replace(CFG, settle_steps=0))
     assert none.episode.num_samples == r.episode.num_samples - 5
+
+
+class WedgedFingers(SlowFingers):
+    """After the release the fingers stick at 3 cm until the hand has slid 8 mm along its -y axis."""
+
+    def reset(self, task, variant, seed):
+        out = super().reset(task, variant, seed)
+        self.released_at = None
+        return out
+
+    def step(self, target, gripper):
+        T = target.matrix()
+        if gripper < 0 and self.released_at is None:
+            self.released_at = T
+        free = self.released_at is not None and (self.released_at[:3, 3] - T[:3, 3]) @ self.released_at[:3, 1] >= 0.008
+        if gripper < 0 and (free or self.width > 0.031):
+            self.width = min(0.08, self.width + 0.02)
+        return FakeWorld.step(self, target, gripper)
+
+
+def test_wedged_fingers_are_freed_before_the_planned_motion(demos):
+    r = run_attempt(WedgedFingers(), demos, FakeTask(), "skillgen", 0, 5, CFG)
+    assert r.success, r.message
+    pos, act = r.episode.obs["robot0_eef_pos"], r.episode.actions
+    assert r.episode.labels["mp_step"][:8].all()
+    # a hold finds the stall; one 8 mm slide along the hand's -y (world +y for a top-down hand)
+    # frees the fingers; held there while they open, then four periods back where it let go
+    np.testing.assert_allclose(pos[2] - pos[1], [0, 0.008, 0], atol=1e-12)
+    np.testing.assert_allclose(pos[2:5], pos[[2, 2, 2]])
+    np.testing.assert_allclose(pos[5:9], pos[[0, 0, 0, 0]])
+    assert (act[:8, 6] == -1).all() and (act[:8, 3:6] == 0).all()
+    off = run_attempt(WedgedFingers(), demos, FakeTask(), "skillgen", 0, 5, replace(CFG, unjam=False))
+    assert off.episode.num_samples == r.episode.num_samples - 7  # only the stall-finding hold

@@ -28,11 +28,11 @@ from ..skills.segment import SourceDemo
 from ..skills.transform import matrix_to_array
 from .episode import Episode, EpisodeRecorder, Observation, StepLabel
 from .initiation import initiation_candidates
+from .release import ReleaseConfig, release_targets
 from .seeds import attempt_rng, scene_seed
 from .selection import make_strategy
 
 METHODS = ("skillgen", "mimicgen", "replay_noise")
-OPEN_WIDTH = 0.075  # m between the fingers: the Panda hand opens to 0.08
 
 
 class FailureReason(str, enum.Enum):
@@ -86,6 +86,9 @@ class GenerationConfig:
     # skillgen: control periods to hold still, before a planned motion, while a gripper that was
     # commanded open is still opening (the fast retreat would drag the object just released)
     settle_steps: int = 10
+    # skillgen: fingers that stopped short of open (wedged on the released object) are freed by
+    # sliding the hand along the finger axis (release.py); False = only the settle
+    unjam: bool = True
 
     def __post_init__(self):
         if (self.action_noise < 0 or self.interpolation_steps < 0 or self.fixed_steps < 0 or self.max_steps < 1
@@ -235,18 +238,19 @@ class _Attempt:
         self._budget()
 
     def settle_gripper(self, label: StepLabel) -> None:
-        """Hold the pose while an opening gripper is still opening (<= settle_steps periods)."""
+        """Before a planned motion: let a gripper commanded open finish opening (release.py)."""
         if self.gripper > 0:
             return
-        hold, width, t = self.obs.ee_matrix(), float(np.sum(self.obs.gripper)), time.perf_counter()
+        cfg = ReleaseConfig(settle_steps=self.cfg.settle_steps, unjam_max=ReleaseConfig.unjam_max if self.cfg.unjam else 0.0)
+        moves, t = release_targets(self.obs.ee_matrix(), float(np.sum(self.obs.gripper)), cfg), time.perf_counter()
         try:
-            for _ in range(self.cfg.settle_steps):
-                if width >= OPEN_WIDTH:
-                    return
-                self._step(hold, self.gripper, 0.0, label)
-                width, before = float(np.sum(self.obs.gripper)), width
-                if abs(width - before) < 5e-4:  # stopped: open as far as it goes
-                    return
+            target = next(moves, None)
+            while target is not None:
+                self._step(target, self.gripper, 0.0, label)
+                try:
+                    target = moves.send(float(np.sum(self.obs.gripper)))
+                except StopIteration:
+                    target = None
         finally:
             self._timed("motion", t)
 

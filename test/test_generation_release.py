@@ -1,0 +1,100 @@
+"""release.py: settle while the fingers open; unjam fingers wedged on the released object."""
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from skillgen_ros.core.generation.release import OPEN_WIDTH, ReleaseConfig, release_targets
+
+HOLD = np.eye(4)
+HOLD[:3, :3] = Rotation.from_euler("xz", [180, 30], degrees=True).as_matrix()  # top-down, yawed
+HOLD[:3, 3] = [0.6, 0.1, 0.05]
+
+
+def drive(gen, fingers):
+    """Run the generator against a finger model: fingers(target, width) -> new width."""
+    targets, width = [], None
+    try:
+        target = next(gen)
+        while True:
+            targets.append(target)
+            width = fingers(target, width)
+            target = gen.send(width)
+    except StopIteration:
+        return targets
+
+
+def opening(rate=0.01, start=0.03):
+    state = {"w": start}
+
+    def f(target, _):
+        state["w"] = min(0.08, state["w"] + rate)
+        return state["w"]
+    return f
+
+
+def test_open_gripper_needs_no_release_steps():
+    assert drive(release_targets(HOLD, 0.079), opening()) == []
+    assert drive(release_targets(HOLD, 0.03, ReleaseConfig(settle_steps=0)), opening()) == []
+
+
+def test_settle_holds_the_pose_until_open():
+    targets = drive(release_targets(HOLD, 0.03), opening(0.01, 0.03))
+    assert len(targets) == 5  # 0.04 .. 0.08: open (>= OPEN_WIDTH) on the fifth period
+    for T in targets:
+        np.testing.assert_array_equal(T, HOLD)
+
+
+def test_still_opening_after_settle_steps_lets_the_motion_start():
+    targets = drive(release_targets(HOLD, 0.0, ReleaseConfig(settle_steps=3)), opening(0.005, 0.0))
+    assert len(targets) == 3
+
+
+def wedged(free_side, free_after=0.016):
+    """Fingers stuck at 2.3 cm until the hand has slid `free_after` m along `free_side` (world)."""
+    state = {"w": 0.023}
+
+    def f(target, _):
+        d = (target[:3, 3] - HOLD[:3, 3]) @ free_side
+        if d >= free_after - 1e-9 or state["w"] > 0.024:
+            state["w"] = min(0.08, state["w"] + 0.02)
+        return state["w"]
+    return f
+
+
+def test_wedged_fingers_are_freed_by_sliding_along_the_finger_axis_and_recentred():
+    y = HOLD[:3, 1]
+    targets = drive(release_targets(HOLD, 0.023), wedged(+y))
+    moves = np.array([T[:3, 3] - HOLD[:3, 3] for T in targets])
+    along_y = moves @ y
+    # one settle period finds the stall; -y for 5 periods (8 mm each, 4 cm), back; +y until free
+    assert np.allclose(moves[0], 0)
+    np.testing.assert_allclose(along_y[1:6], -0.008 * np.arange(1, 6))
+    np.testing.assert_allclose(moves[6], 0, atol=1e-12)
+    np.testing.assert_allclose(along_y[7:9], [0.008, 0.016])
+    # freed at +16 mm: held there until open, then 4 periods back at the release pose
+    assert np.allclose(along_y[9:-4], 0.016)
+    for T in targets[-4:]:
+        np.testing.assert_array_equal(T, HOLD)
+    for T in targets:  # only the position moves, in the hand's plane, at most 4 cm
+        np.testing.assert_allclose(T[:3, :3], HOLD[:3, :3])
+        assert abs((T[:3, 3] - HOLD[:3, 3]) @ HOLD[:3, 2]) < 1e-12
+        assert np.linalg.norm(T[:3, 3] - HOLD[:3, 3]) <= 0.04 + 1e-12
+
+
+def test_the_palm_axis_is_tried_after_the_finger_axis():
+    targets = drive(release_targets(HOLD, 0.023), wedged(-HOLD[:3, 0], 0.008))
+    moves = np.array([T[:3, 3] - HOLD[:3, 3] for T in targets])
+    first_x = next(i for i, m in enumerate(moves) if abs(m @ HOLD[:3, 0]) > 1e-9)
+    assert first_x == 1 + 2 * 6  # settle, then -y and +y (5 slides + back each)
+    assert moves[first_x] @ HOLD[:3, 0] == pytest.approx(-0.008)
+
+
+def test_never_freed_ends_back_at_the_release_pose_after_bounded_moves():
+    targets = drive(release_targets(HOLD, 0.023), lambda T, w: 0.023)
+    assert len(targets) == 1 + 4 * 6
+    np.testing.assert_array_equal(targets[-1], HOLD)
+    assert drive(release_targets(HOLD, 0.023, ReleaseConfig(unjam_max=0.0)), lambda T, w: 0.023) == [HOLD]
+
+
+def test_open_width_is_below_the_panda_hand_maximum():
+    assert 0.07 <= OPEN_WIDTH < 0.08

@@ -173,5 +173,5 @@ def test_wedged_fingers_are_freed_before_the_planned_motion(demos):
     np.testing.assert_allclose(pos[2:5], pos[[2, 2, 2]])
     np.testing.assert_allclose(pos[5:9], pos[[0, 0, 0, 0]])
     assert (act[:8, 6] == -1).all() and (act[:8, 3:6] == 0).all()
-    off = run_attempt(WedgedFingers(), demos, FakeTask(), "skillgen", 0, 5, replace(CFG, unjam=False))
+    off = run_attempt(WedgedFingers(), demos, FakeTask(), "skillgen", 0, 5, replace(CFG, release_moves=False))
     assert off.episode.num_samples == r.episode.num_samples - 7  # only the stall-finding hold

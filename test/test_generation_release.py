@@ -3,22 +3,23 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skillgen_ros.core.generation.release import OPEN_WIDTH, ReleaseConfig, release_targets
+from skillgen_ros.core.generation.release import OPEN_WIDTH, Feedback, ReleaseConfig, release_targets
 
 HOLD = np.eye(4)
 HOLD[:3, :3] = Rotation.from_euler("xz", [180, 30], degrees=True).as_matrix()  # top-down, yawed
 HOLD[:3, 3] = [0.6, 0.1, 0.05]
 
 
-def drive(gen, fingers):
-    """Run the generator against a finger model: fingers(target, width) -> new width."""
+def drive(gen, fingers, hand=lambda target: target[:3, 3]):
+    """Run the generator against a finger model fingers(target, width) -> width and a hand model
+    hand(target) -> EE position (default: the OSC reaches every target)."""
     targets, width = [], None
     try:
         target = next(gen)
         while True:
             targets.append(target)
             width = fingers(target, width)
-            target = gen.send(width)
+            target = gen.send(Feedback(width, hand(target)))
     except StopIteration:
         return targets
 
@@ -98,3 +99,36 @@ def test_never_freed_ends_back_at_the_release_pose_after_bounded_moves():
 
 def test_open_width_is_below_the_panda_hand_maximum():
     assert 0.07 <= OPEN_WIDTH < 0.08
+
+
+def test_a_finger_stalling_again_after_some_progress_does_not_end_the_unjam():
+    state = {"w": 0.023, "n": 0}
+
+    def fingers(target, _):  # the first slide gains 3 mm then sticks; the +y side frees them
+        state["n"] += 1
+        d = (target[:3, 3] - HOLD[:3, 3]) @ HOLD[:3, 1]
+        if d > 0.0159 or state["w"] > 0.03:
+            state["w"] = min(0.08, state["w"] + 0.02)
+        elif state["n"] == 2:
+            state["w"] = 0.026
+        return state["w"]
+    targets = drive(release_targets(HOLD, 0.023), fingers)
+    assert max((T[:3, 3] - HOLD[:3, 3]) @ HOLD[:3, 1] for T in targets) == pytest.approx(0.016)
+    np.testing.assert_array_equal(targets[-1], HOLD)
+    assert state["w"] >= OPEN_WIDTH
+
+
+def test_a_hand_pushed_off_its_last_target_moves_on_along_the_push():
+    reference = HOLD.copy()
+    pushed = HOLD.copy()
+    pushed[:3, 3] += [0.0, 0.012, 0.0]  # an open finger pressing the object: 12 mm off target
+    targets = drive(release_targets(pushed, 0.078, reference=reference), lambda T, w: 0.078,
+                    hand=lambda T: pushed[:3, 3])
+    assert len(targets) == ReleaseConfig().follow_steps
+    for T in targets:
+        np.testing.assert_allclose(T[:3, 3] - reference[:3, 3], [0.0, 0.027, 0.0], atol=1e-12)
+        np.testing.assert_allclose(T[:3, :3], reference[:3, :3])
+    near = HOLD.copy()
+    near[:3, 3] += [0.005, 0.0, 0.0]  # within the tracking error: nothing to do
+    assert drive(release_targets(near, 0.078, reference=reference), lambda T, w: 0.078) == []
+    assert drive(release_targets(pushed, 0.078, ReleaseConfig(follow=0.0), reference), lambda T, w: 0.078) == []

@@ -11,7 +11,6 @@ module does the bookkeeping and the math, and records every step for the dataset
 """
 from __future__ import annotations
 
-import enum
 import time
 from dataclasses import dataclass, field
 from typing import Mapping, Protocol, Sequence
@@ -28,22 +27,12 @@ from ..skills.segment import SourceDemo
 from ..skills.transform import matrix_to_array
 from .episode import Episode, EpisodeRecorder, Observation, StepLabel
 from .initiation import initiation_candidates
-from .release import ReleaseConfig, release_targets
+from .outcome import GOAL_INFEASIBLE, FailureReason, motion_failure  # noqa: F401 (re-exported)
+from .release import Feedback, ReleaseConfig, release_targets
 from .seeds import attempt_rng, scene_seed
 from .selection import make_strategy
 
 METHODS = ("skillgen", "mimicgen", "replay_noise")
-
-
-class FailureReason(str, enum.Enum):
-    OK = "OK"
-    PERCEPTION_FAILED = "PERCEPTION_FAILED"
-    IK_FAILED = "IK_FAILED"
-    PLAN_FAILED = "PLAN_FAILED"
-    EXECUTION_COLLISION = "EXECUTION_COLLISION"
-    SKILL_FAILED = "SKILL_FAILED"
-    TASK_FAILED = "TASK_FAILED"
-    TIMEOUT = "TIMEOUT"
 
 
 class GenerationEnv(Protocol):
@@ -86,9 +75,10 @@ class GenerationConfig:
     # skillgen: control periods to hold still, before a planned motion, while a gripper that was
     # commanded open is still opening (the fast retreat would drag the object just released)
     settle_steps: int = 10
-    # skillgen: fingers that stopped short of open (wedged on the released object) are freed by
-    # sliding the hand along the finger axis (release.py); False = only the settle
-    unjam: bool = True
+    # skillgen: free the released object before the motion (release.py): fingers that stopped short
+    # of open are unjammed by sliding the hand in its plane, and a hand pushed off its last target
+    # by an open finger moves on along the push; False = only the settle
+    release_moves: bool = True
 
     def __post_init__(self):
         if (self.action_noise < 0 or self.interpolation_steps < 0 or self.fixed_steps < 0 or self.max_steps < 1
@@ -107,25 +97,6 @@ class AttemptResult:
     source_demos: tuple[int, ...]  # per skill (replay_noise: the one demo)
     episode: Episode
     timings: dict  # stage -> seconds: reset, perception, motion, skill, success, total
-
-
-# Planner statuses (core/planning PlanStatus: PLAN_TIMEOUT, GOAL_IN_COLLISION, ... -> PLAN_FAILED) and
-# executor outcomes: a trajectory the driver could not track counts as an execution failure.
-_STATUS = {"OK": None, "SUCCESS": None, "SUCCEEDED": None, "SUCCESSFUL": None, "IK_FAILED": FailureReason.IK_FAILED,
-           "EXECUTION_FAILED": FailureReason.EXECUTION_COLLISION, "ABORTED": FailureReason.EXECUTION_COLLISION,
-           "NO_IK": FailureReason.IK_FAILED, "IK": FailureReason.IK_FAILED,
-           "COLLISION": FailureReason.EXECUTION_COLLISION, "EXECUTION_COLLISION": FailureReason.EXECUTION_COLLISION,
-           "TIMEOUT": FailureReason.TIMEOUT, "TIMED_OUT": FailureReason.TIMEOUT}
-
-
-def motion_failure(status) -> FailureReason | None:
-    """Planner/executor status -> None on success, else the attempt's failure reason (PLAN_FAILED default)."""
-    name = str(getattr(status, "name", status)).upper()
-    return _STATUS.get(name, FailureReason.PLAN_FAILED)
-
-
-# Planner answers that mean "this initiation pose cannot be reached" before anything moved.
-_GOAL_INFEASIBLE = {"GOAL_IN_COLLISION", "IK_FAILED", "NO_IK", "IK"}
 
 
 class _Fail(Exception):
@@ -230,7 +201,7 @@ class _Attempt:
         if reason is not None:
             name = str(getattr(status, "name", status))
             raise _Fail(reason, f"motion to skill {skill.index} ({skill.mode}) failed: {name}",
-                        goal_infeasible=not steps and name.upper() in _GOAL_INFEASIBLE)
+                        goal_infeasible=not steps and name.upper() in GOAL_INFEASIBLE)
         if self.cfg.check_collisions and self.env.collided():
             raise _Fail(FailureReason.EXECUTION_COLLISION, f"collision during the motion to skill {skill.index}")
         if not steps:
@@ -238,17 +209,19 @@ class _Attempt:
         self._budget()
 
     def settle_gripper(self, label: StepLabel) -> None:
-        """Before a planned motion: let a gripper commanded open finish opening (release.py)."""
+        """Before a planned motion: let the object just released come free of the hand (release.py)."""
         if self.gripper > 0:
             return
-        cfg = ReleaseConfig(settle_steps=self.cfg.settle_steps, unjam_max=ReleaseConfig.unjam_max if self.cfg.unjam else 0.0)
-        moves, t = release_targets(self.obs.ee_matrix(), float(np.sum(self.obs.gripper)), cfg), time.perf_counter()
+        cfg = ReleaseConfig(settle_steps=self.cfg.settle_steps) if self.cfg.release_moves else \
+            ReleaseConfig(settle_steps=self.cfg.settle_steps, unjam_max=0.0, follow=0.0)
+        moves = release_targets(self.obs.ee_matrix(), float(np.sum(self.obs.gripper)), cfg, self.last_target)
+        t = time.perf_counter()
         try:
             target = next(moves, None)
             while target is not None:
                 self._step(target, self.gripper, 0.0, label)
                 try:
-                    target = moves.send(float(np.sum(self.obs.gripper)))
+                    target = moves.send(Feedback(float(np.sum(self.obs.gripper)), self.obs.ee_matrix()[:3, 3]))
                 except StopIteration:
                     target = None
         finally:
@@ -332,6 +305,8 @@ class _Attempt:
             self.rec.add(obs, a, steps["actions_abs"][k][:7], float(steps["actions_abs"][k][7]),
                          StepLabel(False, skill.index, j, goal7, bool(steps["recovery"][k])))
             self.gripper = float(steps["actions_abs"][k][7])
+        if len(steps["actions"]):  # the last pose sent (with its noise): the release's drift reference
+            self.last_target = Pose.from_array(steps["actions_abs"][-1][:7]).matrix()
         self.obs = self.env.observe()
         if not ok:
             raise _Fail(FailureReason.TIMEOUT if reason == "TIMEOUT" else FailureReason.SKILL_FAILED,

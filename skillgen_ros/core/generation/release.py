@@ -1,4 +1,4 @@
-"""Release: let a gripper commanded open finish opening before a planned motion starts.
+"""Release: leave the object just put down free of the hand before a planned motion starts.
 
 A place skill ends with the open command, but the replay may end before the fingers are open.
 The fast planned retreat would then drag the released object (a NutAssembly nut off its peg).
@@ -12,17 +12,28 @@ along the palm (EE x), to each side in turn, up to 4 cm: far enough that the nut
 peg, which holds the nut while the fingers come free (unjam). Then the open hand goes back to the
 release pose, centred on the handle, so the retreat does not drag the nut up by one finger.
 
-The moves need only the measured gripper width, so the same code runs in-process and over the
-graph. `release_targets` is a generator: it yields EE targets and is sent the width after each.
+An open finger can also press the object against its fixture (the nut's ring against the peg).
+The compliant OSC then lets the hand drift away from its last target, and the retreat would lift
+the object by friction. If the hand has drifted more than 8 mm, it moves on 1.5 cm further along
+the drift, which unloads the finger (follow).
+
+The moves need only the measured gripper width and EE position, so the same code runs
+in-process and over the graph. `release_targets` is a generator: it yields EE targets and is
+sent a `Feedback` after each.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Generator
+from typing import Generator, NamedTuple
 
 import numpy as np
 
 OPEN_WIDTH = 0.075  # m between the fingers that counts as open: the Panda hand opens to 0.08
+
+
+class Feedback(NamedTuple):
+    width: float  # m between the fingers
+    position: np.ndarray  # EE position (m, world)
 
 
 @dataclass(frozen=True)
@@ -30,46 +41,66 @@ class ReleaseConfig:
     settle_steps: int = 10  # periods to hold still while the fingers open
     stall_eps: float = 5e-4  # m of width change per period below which the fingers have stopped
     unjam_step: float = 0.008  # m of hand slide per period
-    unjam_max: float = 0.04  # m of slide per direction at most
-    progress: float = 0.002  # m of width gained that shows a move freed the fingers
+    unjam_max: float = 0.04  # m of slide per direction at most (0 = no unjam)
+    progress: float = 0.002  # m of width gained that shows a move may have freed the fingers
     recentre_steps: int = 4  # periods back at the release pose once the fingers are free
+    drift_max: float = 0.008  # m off the last target beyond which an open finger is pressing
+    follow: float = 0.015  # m to move on along the drift (0 = no follow)
+    follow_steps: int = 6
 
 
-def _hold(target: np.ndarray, width: float, cfg: ReleaseConfig) -> Generator[np.ndarray, float, tuple[float, bool]]:
-    """Hold `target` while the fingers open; returns (width, stalled short of open)."""
+Releaser = Generator[np.ndarray, Feedback, None]
+
+
+def _hold(target: np.ndarray, fb: Feedback, cfg: ReleaseConfig) -> Generator[np.ndarray, Feedback, tuple[Feedback, bool]]:
+    """Hold `target` while the fingers open; returns (feedback, stalled short of open)."""
     for _ in range(cfg.settle_steps):
-        before, width = width, (yield target)
-        if width >= OPEN_WIDTH:
-            return width, False
-        if abs(width - before) < cfg.stall_eps:
-            return width, True
-    return width, False
+        before, fb = fb, (yield target)
+        if fb.width >= OPEN_WIDTH:
+            return fb, False
+        if abs(fb.width - before.width) < cfg.stall_eps:
+            return fb, True
+    return fb, False
 
 
-def release_targets(hold: np.ndarray, width: float, cfg: ReleaseConfig = ReleaseConfig()
-                    ) -> Generator[np.ndarray, float, None]:
-    """Yield 4x4 EE targets; send() each the gripper width after the step. Ends when open.
-
-    settle: hold `hold` while the width grows (at most settle_steps periods).
-    unjam: if the fingers stopped short of OPEN_WIDTH, slide along hold's -y, +y, -x, +x axes in
-    turn (back to `hold` between them); once a move frees them, hold there while they open, then
-    return to `hold`.
-    """
-    if width >= OPEN_WIDTH or cfg.settle_steps == 0:
-        return
-    width, stalled = yield from _hold(hold, width, cfg)
-    if not stalled or cfg.unjam_max <= 0:
-        return  # open, still opening (the motion may start), or unjamming is off
-    stuck = width
+def _unjam(hold: np.ndarray, fb: Feedback, cfg: ReleaseConfig) -> Generator[np.ndarray, Feedback, Feedback]:
+    """Slide along hold's -y, +y, -x, +x (back to `hold` between them) until the fingers open."""
+    stuck = fb.width
     n = max(1, int(round(cfg.unjam_max / cfg.unjam_step)))
     moves = [hold[:3, 3] + k * cfg.unjam_step * axis for axis in (-hold[:3, 1], hold[:3, 1], -hold[:3, 0], hold[:3, 0])
              for k in [*range(1, n + 1), 0]]  # k = 0: back to where the release happened
     for position in moves:
         target = hold.copy()
         target[:3, 3] = position
-        width = yield target
-        if width - stuck >= cfg.progress:  # free: let them finish opening here, then centre the
-            yield from _hold(target, width, cfg)  # open hand on the object again, clear of it,
-            for _ in range(cfg.recentre_steps):  # so the retreat does not drag it by a finger
-                yield hold
-            return
+        fb = yield target
+        if fb.width - stuck >= cfg.progress:  # looks free: let them finish opening here
+            fb, stalled = yield from _hold(target, fb, cfg)
+            if stalled and fb.width < OPEN_WIDTH:
+                stuck = fb.width  # wedged again: carry on with the next move
+                continue
+            for _ in range(cfg.recentre_steps):  # then centre the open hand on the object again
+                fb = yield hold
+            return fb
+    return fb
+
+
+def release_targets(hold: np.ndarray, width: float, cfg: ReleaseConfig = ReleaseConfig(),
+                    reference: np.ndarray | None = None) -> Releaser:
+    """Yield 4x4 EE targets; send() each the Feedback after the step. Ends when the hand is free.
+
+    hold: the EE pose now (held while settling); reference: where the hand was last sent (the
+    skill's last target), for the drift check; None skips it.
+    """
+    fb = Feedback(float(width), hold[:3, 3].copy())
+    if fb.width < OPEN_WIDTH and cfg.settle_steps > 0:
+        fb, stalled = yield from _hold(hold, fb, cfg)
+        if stalled and cfg.unjam_max > 0:
+            fb = yield from _unjam(hold, fb, cfg)
+    if reference is None or cfg.follow <= 0:
+        return
+    drift = np.asarray(fb.position, float) - reference[:3, 3]
+    if np.linalg.norm(drift) > cfg.drift_max:
+        target = reference.copy()
+        target[:3, 3] += drift / np.linalg.norm(drift) * (np.linalg.norm(drift) + cfg.follow)
+        for _ in range(cfg.follow_steps):
+            yield target

@@ -219,9 +219,11 @@ class SimGenerationEnv:
         others = [o.id for o in self.scene.objects if o.id not in (skill_object, attached)]
         # The planner lets the hand touch what it just released, and that object's support, on the
         # retreat (the paper ignores these contacts there): so does the execution check, while the
-        # EE is still within the retreat distance of where it started.
+        # EE is still within the retreat's length (10 cm when it backed out from a fixture) of where
+        # it started.
         w = self.world
-        start_ee, near = w.ee_pose().position, self.planner.retreat_distance + 0.01
+        near = max(self.planner.retreat_distance, res.retreat_length) + 0.01
+        start_ee = w.ee_pose().position
         on_retreat = [x for x in (released, released_support) if x]
         w.start_trajectory([f"panda_joint{i}" for i in range(1, 8)], tr.times, tr.positions, tr.velocities)
         while True:

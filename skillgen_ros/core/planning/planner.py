@@ -69,6 +69,7 @@ class PlanResult:
     segments: tuple = ()
     timings: dict = field(default_factory=dict)
     message: str = ""
+    retreat_length: float = 0.0  # m the hand backs out before transit (doubled against a fixture)
 
     @property
     def ok(self) -> bool:
@@ -277,8 +278,9 @@ class MotionPlanner:
         traj = time_parameterize(path, self.dt, scale=self.velocity_scale)
         timings["parameterize"] = time.perf_counter() - t
         timings["total"] = time.perf_counter() - t_all
+        retreat_length = float(np.linalg.norm(self.kin.fk(retreat_path[-1])[:3, 3] - self.kin.fk(retreat_path[0])[:3, 3]))
         return PlanResult(PlanStatus.SUCCESS, traj, path, segments, timings,
-                          "; ".join([f"{len(path)} waypoints, {traj.duration:.2f} s"] + notes))
+                          "; ".join([f"{len(path)} waypoints, {traj.duration:.2f} s"] + notes), retreat_length)
 
     def _touching_hand(self, q0, allow, collides) -> tuple[str, ...]:
         """Scene boxes whose contact with the hand alone makes the start collide (empty if allowing

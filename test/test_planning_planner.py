@@ -191,6 +191,7 @@ def test_start_with_the_hand_against_a_fixture_backs_out_along_the_retreat(setup
         a, b = next((a, b) for name, a, b in res.segments if name == "retreat")
         rise = kin.fk(res.joint_path[b])[2, 3] - kin.fk(q0)[2, 3]
         assert rise == pytest.approx(planner.retreat_distance, abs=2e-3)  # straight up, 5 cm
+        assert res.retreat_length == pytest.approx(rise, abs=1e-3)  # what the execution check allows
         assert not cm.in_collision(res.joint_path[b:]).any()
         # the arm inside the block is not a hand contact: still refused
         cm.set_boxes([block, _box("pillar", kin.link_poses(q0)["panda_link4"][:3, 3], [0.03, 0.03, 0.03])])

@@ -8,6 +8,9 @@ One part again, updating the JSON in place (e.g. the graph overhead: 3 pairs of 
     .venv/bin/python bench/datagen/run.py --only graph_overhead
 Some methods' cells again (the others and the extras stay as they are in the JSON):
     .venv/bin/python bench/datagen/run.py --attempts 200 --workers 2 --methods skillgen skillgen+IA
+The D0 cells on another seed, into their own JSON (a check that a cell's gap to the paper is noise):
+    .venv/bin/python bench/datagen/run.py --workers 2 --seed 2000 --tasks Square NutAssembly --variants D0 \
+        --methods skillgen --out bench/results/datagen_seed2000.json
 
 Success cells run in-process (SimGenerationEnv: the same Algorithm 1, dataset writer and seeds as
 the datagen node) with fixed seeds; the graph-overhead cell runs the same attempts through the
@@ -151,6 +154,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--perception", default="ground_truth", choices=["ground_truth", "estimate"])
     ap.add_argument("--tasks", nargs="*", default=list(CELLS_FULL))
+    ap.add_argument("--variants", nargs="*", default=[], help="only these variants (default: all of each task)")
     ap.add_argument("--skip-graph", action="store_true")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "datagen.json"))
     ap.add_argument("--methods", nargs="+", default=[], choices=[_key(m, aug) for m, aug in METHODS] + ["replay_noise"],
@@ -171,7 +175,7 @@ def main(argv=None) -> int:
     jobs = []
     for task in a.tasks:
         for variant in CELLS_FULL[task]:
-            if a.quick and variant == "D1":
+            if (a.quick and variant == "D1") or (a.variants and variant not in a.variants):
                 continue
             for method, aug in METHODS:
                 jobs.append((task, variant, method, aug, n, a.seed, a.perception))
@@ -201,8 +205,8 @@ def _key(method: str, augment: bool) -> str:
 
 
 def _merge(path: Path, cells: list, wall: float) -> int:
-    """Replace the matching cells of an existing JSON and recompute the summary."""
-    out = json.loads(path.read_text())
+    """Replace the matching cells of an existing JSON (or start one) and recompute the summary."""
+    out = json.loads(path.read_text()) if path.exists() else {"benchmark": "datagen", "cells": []}
     new = {(c["task"], c["variant"], c["method"], c["augment"]): c for c in cells}
     for c in cells:
         c["rerun"] = " ".join(["python", "bench/datagen/run.py", *sys.argv[1:]])

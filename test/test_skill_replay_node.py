@@ -18,7 +18,7 @@ def loop():
                                           "--params-file", str(REPO / "params" / "mock_driver.yaml"),
                                           "--params-file", str(REPO / "params" / "skill_replay.yaml"),
                                           "-p", "mock_driver:timing_mode:=realtime", "-p", "mock_driver:cameras:=[]",
-                                          "-p", "skill_replay:feedback_hz:=0.0", "-p", "skill_replay:step_timeout:=1.0"])
+                                          "-p", "skill_replay:feedback_hz:=0.0"])
     try:
         yield dom, proc
     finally:

@@ -145,7 +145,8 @@ def test_planned_motion_waits_for_an_opening_gripper(demos):
 
 
 class WedgedFingers(SlowFingers):
-    """After the release the fingers stick at 3 cm until the hand has slid 8 mm along its -y axis."""
+    """Open-commanded fingers stuck at 3 cm (as if wedged on an object just released) until the hand
+    has slid 8 mm along its -y axis from where the opening began."""
 
     def reset(self, task, variant, seed):
         out = super().reset(task, variant, seed)

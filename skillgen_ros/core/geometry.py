@@ -140,9 +140,10 @@ class Symmetry(str, Enum):
         """Yaw range (rad) that holds one representative of every distinct pose."""
         return 0.0 if self.order == 0 else 2 * np.pi / self.order
 
-    def rotations(self) -> list[np.ndarray]:
-        """The discrete group elements as 3x3 matrices (identity only for continuous)."""
-        k = max(self.order, 1)
+    def rotations(self, continuous_samples: int = 1) -> list[np.ndarray]:
+        """The discrete group elements as 3x3 matrices, identity first; a continuous symmetry is
+        sampled at `continuous_samples` evenly spaced yaws (1: identity only)."""
+        k = self.order or max(continuous_samples, 1)
         return [Rotation.from_euler("z", 2 * np.pi * i / k).as_matrix() for i in range(k)]
 
     @staticmethod

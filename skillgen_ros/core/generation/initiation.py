@@ -18,7 +18,6 @@ from __future__ import annotations
 from typing import Iterator, Sequence
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..geometry import Symmetry, rotation_angle
 from ..skills.protocols import SkillLike, TaskLike
@@ -31,13 +30,11 @@ GRASP_TOL_RAD = np.radians(20.0)
 
 def symmetry_frames(T_W_O: np.ndarray, symmetry: str) -> list[np.ndarray]:
     """T_W^{O'} turned about its own z by the symmetry group's other elements (identity excluded)."""
-    sym = Symmetry.parse(symmetry)
-    n = CONTINUOUS_YAWS if sym is Symmetry.Z_CONTINUOUS else sym.order
     out = []
-    for k in range(1, n):
-        R = np.eye(4)
-        R[:3, :3] = Rotation.from_euler("z", 2 * np.pi * k / n).as_matrix()
-        out.append(np.asarray(T_W_O, float) @ R)
+    for R in Symmetry.parse(symmetry).rotations(CONTINUOUS_YAWS)[1:]:
+        T = np.eye(4)
+        T[:3, :3] = R
+        out.append(np.asarray(T_W_O, float) @ T)
     return out
 
 

@@ -99,8 +99,9 @@ def release_targets(hold: np.ndarray, width: float, cfg: ReleaseConfig = Release
     if reference is None or cfg.follow <= 0:
         return
     drift = np.asarray(fb.position, float) - reference[:3, 3]
-    if np.linalg.norm(drift) > cfg.drift_max:
+    size = float(np.linalg.norm(drift))
+    if size > cfg.drift_max:
         target = reference.copy()
-        target[:3, 3] += drift / np.linalg.norm(drift) * (np.linalg.norm(drift) + cfg.follow)
+        target[:3, 3] += drift / size * (size + cfg.follow)
         for _ in range(cfg.follow_steps):
             yield target

@@ -169,3 +169,44 @@ def test_scripted_actions_replay_open_loop_to_success():
         w.step(pose, g)
     assert w.task_success()
     w.close()
+
+
+
+def _push_fingers(world, newtons: float, periods: int, command: float) -> list[float]:
+    """Step holding the EE with `command`, pushing both fingers towards (+) or away from (-) each
+    other with `newtons` each (as an object wedged against them would); the width after each period."""
+    step, ee, widths = world.p.stepSimulation, world.ee_pose(), []
+
+    def pushed():
+        for f, sign in zip(world.fingers, (1.0, -1.0)):  # finger joint axes: left +y, right -y (hand frame)
+            world.p.applyExternalForce(world.robot, f, [0.0, -sign * newtons, 0.0], [0.0, 0.0, 0.0],
+                                       world.p.LINK_FRAME)
+        step()
+    world.p.stepSimulation = pushed
+    try:
+        for _ in range(periods):
+            world.step(ee, command)
+            widths.append(world.gripper_width())
+    finally:
+        world.p.stepSimulation = step
+    return widths
+
+
+def test_gripper_open_is_a_move_close_is_a_grasp(world):
+    """As on the Franka hand: a closing grasp keeps its force and a blocked opening move keeps
+    pushing, but once open the fingers only hold lightly, so an object pressing on an open finger is
+    not squeezed at full force (and dragged along by friction)."""
+    world.reset("Square", "D0", 0)
+    closed = _push_fingers(world, 0.0, 15, 1.0)[-1]
+    assert max(_push_fingers(world, -10.0, 10, 1.0)) < closed + 0.002   # a grasp resists 10 N outwards
+    assert max(_push_fingers(world, 30.0, 15, -1.0)) < 0.01             # an opening move held by 30 N stalls
+    widths = _push_fingers(world, 10.0, 20, -1.0)                         # against 10 N it still opens
+    assert max(widths) > 0.078 and widths[-1] < 0.06                     # then yields to the same 10 N
+    _push_fingers(world, 0.0, 1, 1.0)                                     # a new command restarts the motor
+    assert _push_fingers(world, 0.0, 20, -1.0)[-1] > 0.079
+
+
+@pytest.mark.parametrize("forces", [(20.0, -1.0), (20.0, 30.0), (np.inf, 2.0), (np.nan, 2.0)])
+def test_bad_gripper_forces_rejected(forces):
+    with pytest.raises(InvalidInputError, match="gripper_hold_force"):
+        SimWorld(gripper_force=forces[0], gripper_hold_force=forces[1])

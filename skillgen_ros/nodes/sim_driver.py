@@ -18,6 +18,7 @@ SIM_PARAMS = {
     "osc_kp_null": (10.0, "nullspace posture stiffness toward Q_HOME"),
     "joint_kp": (400.0, "joint-trajectory computed-torque stiffness (critically damped)"),
     "gripper_force": (20.0, "finger force limit for OSC gripper commands (N per finger)"),
+    "gripper_hold_force": (2.0, "finger force once an opening move reached its width (N per finger)"),
 }
 
 
@@ -32,7 +33,7 @@ def make_world(param):
                         osc=OscGains(float(param("osc_kp_pos")), float(param("osc_kp_ori")),
                                      float(param("osc_damping_ratio")), float(param("osc_kp_null"))),
                         joint=JointGains(float(param("joint_kp"))), gripper_force=float(param("gripper_force")),
-                        cameras=camera_configs(param))
+                        gripper_hold_force=float(param("gripper_hold_force")), cameras=camera_configs(param))
         return SimWorld(cfg)
     except SkillGenError as e:
         raise ParameterError(str(e))

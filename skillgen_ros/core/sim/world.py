@@ -30,6 +30,7 @@ TABLE_HALF = (0.75, 0.8, 0.025)
 TABLE_CENTER = (0.35, 0.0, TABLE_Z - 0.025)
 DEFAULT_GOAL_TOLERANCE = 0.02  # rad
 GRASP_MIN_WIDTH = 0.002        # fingers closed on nothing stop below this width
+OPEN_REACHED = 0.001           # an opening move within this of its width has arrived
 
 
 @dataclass
@@ -48,6 +49,7 @@ class SimConfig:
     osc: OscGains = field(default_factory=OscGains)
     joint: JointGains = field(default_factory=JointGains)
     gripper_force: float = 20.0       # N per finger
+    gripper_hold_force: float = 2.0   # N per finger once an opening move reaches its width (Franka move())
     cameras: tuple[cam.CameraConfig, ...] = ()
     solver_iterations: int = 50
     lowpoly_visuals: bool = True      # render the Panda with its collision meshes (~20x faster TinyRenderer)
@@ -70,6 +72,8 @@ class SimWorld:
         self.cfg = cfg
         if self.cfg.physics_hz % self.cfg.control_hz:
             raise InvalidInputError("physics_hz must be an integer multiple of control_hz")
+        if not (0.0 <= self.cfg.gripper_hold_force <= self.cfg.gripper_force < np.inf):
+            raise InvalidInputError("need 0 <= gripper_hold_force <= gripper_force, both finite")
         self.substeps = int(round(self.cfg.physics_hz / self.cfg.control_hz))
         self.dt = 1.0 / self.cfg.physics_hz
         self.p = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
@@ -126,7 +130,8 @@ class SimWorld:
         self.body_names = {v: k for k, v in self.bodies.items()} | {self.table: "table"}
         self.gripper_command = -1.0
         self._finger_target = GRIPPER_MAX_WIDTH / 2
-        self._finger_force = self.cfg.gripper_force
+        self._commanded_force = self.cfg.gripper_force
+        self._finger_force, self._opening = self.cfg.gripper_hold_force, False  # open and arrived
         self._apply_gripper()
         self._hold_q = np.array(Q_HOME)
         self._osc_target = self.ee_pose()
@@ -267,6 +272,9 @@ class SimWorld:
             self._traj.t += self.dt
         else:
             tau = joint_torques(self._hold_q, np.zeros(7), np.zeros(7), q, qd, M, h, self.cfg.joint)
+        if self._opening and q9[7] + q9[8] >= 2.0 * self._finger_target - OPEN_REACHED:
+            self._opening, self._finger_force = False, min(self._finger_force, self.cfg.gripper_hold_force)
+            self._apply_gripper()
         self.p.setJointMotorControlArray(self.robot, self.arm, self.p.TORQUE_CONTROL, forces=tau.tolist())
         self.p.stepSimulation()
         self.time += self.dt
@@ -276,22 +284,30 @@ class SimWorld:
                                          targetPositions=[self._finger_target] * 2,
                                          forces=[self._finger_force] * 2, positionGains=[0.05] * 2)
 
+    def _command_fingers(self, half_width: float, force: float) -> None:
+        """Closing is a grasp: the force stays on. Opening is a move, as on the Franka hand: once the
+        fingers reach the width the motor drops to gripper_hold_force, so an open finger that an
+        object pushes on yields instead of pressing it at full force (a 20 N open finger dragged
+        nuts up their pegs on the retreat). A repeated command does not restart the move."""
+        if half_width == self._finger_target and force == self._commanded_force:
+            return
+        self._opening = half_width * 2.0 > self.gripper_width() + OPEN_REACHED
+        self._finger_target, self._finger_force, self._commanded_force = half_width, force, force
+        self._apply_gripper()
+
     def gripper(self, command: float) -> None:
         """-1 open .. +1 closed (robosuite convention), force-limited by gripper_force."""
         g = validate_gripper(command)
         self.gripper_command = g
-        self._finger_target = (1.0 - g) / 2.0 * GRIPPER_MAX_WIDTH / 2.0
-        self._finger_force = self.cfg.gripper_force
-        self._apply_gripper()
+        self._command_fingers((1.0 - g) / 2.0 * GRIPPER_MAX_WIDTH / 2.0, self.cfg.gripper_force)
 
     def gripper_to(self, width: float, max_effort: float) -> None:
         """Move the fingers to opening `width` (m) with at most `max_effort` N per finger."""
         if not (np.isfinite(width) and np.isfinite(max_effort)) or max_effort <= 0:
             raise InvalidInputError(f"gripper width {width} / effort {max_effort} invalid")
-        self._finger_target = float(np.clip(width, 0.0, GRIPPER_MAX_WIDTH)) / 2.0
-        self._finger_force = float(max_effort)
-        self.gripper_command = 1.0 - 2.0 * self._finger_target * 2.0 / GRIPPER_MAX_WIDTH
-        self._apply_gripper()
+        half = float(np.clip(width, 0.0, GRIPPER_MAX_WIDTH)) / 2.0
+        self.gripper_command = 1.0 - 2.0 * half * 2.0 / GRIPPER_MAX_WIDTH
+        self._command_fingers(half, float(max_effort))
 
     def step(self, osc_target: Pose, gripper: float | None = None) -> None:
         """One control period tracking an absolute EE target with the OSC (validated; may raise)."""

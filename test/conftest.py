@@ -11,6 +11,7 @@ import itertools
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -49,14 +50,16 @@ def node_env(domain: int, **extra) -> dict:
 
 
 class NodeProcess:
-    """A node started as its own process (the way `ros2 run` would), stopped with SIGINT."""
+    """A node started as its own process (the way `ros2 run` would), stopped with SIGINT. Its output
+    goes to a temporary file, not a pipe: a chatty node must never block on a full pipe buffer."""
 
     def __init__(self, exe: str, domain: int, args=(), params: str | None = None, **env):
         cmd = [str(VENV_BIN / exe), *args]
         if params:
             cmd += ["--ros-args", "--params-file", params]
         self.exe = exe
-        self.proc = subprocess.Popen(cmd, env=node_env(domain, **env), stdout=subprocess.PIPE,
+        self.log = tempfile.TemporaryFile("w+")
+        self.proc = subprocess.Popen(cmd, env=node_env(domain, **env), stdout=self.log,
                                      stderr=subprocess.STDOUT, text=True, cwd=REPO)
 
     def stop(self, timeout: float = 10.0) -> str:
@@ -67,7 +70,8 @@ class NodeProcess:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
-        return self.proc.stdout.read() if self.proc.stdout else ""
+        self.log.seek(0)
+        return self.log.read()
 
 
 @pytest.fixture

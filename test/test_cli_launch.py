@@ -37,6 +37,10 @@ def test_invalid_params_file_is_a_clear_error(ros_domain, tmp_path):
     wrong.write_text("mock_driver:\n  ros__parameters:\n    control_hz: fast\n")
     r = _run(["run", "mock_driver", "--ros-args", "--params-file", str(wrong)], node_env(ros_domain))
     assert r.returncode == 2 and "INVALID_PARAMETER" in r.stderr and "Traceback" not in r.stderr
+    release = tmp_path / "release.yaml"
+    release.write_text("datagen:\n  ros__parameters:\n    settle_steps: -1\n")
+    r = _run(["run", "datagen", "--ros-args", "--params-file", str(release)], node_env(ros_domain))
+    assert r.returncode == 2 and "INVALID_PARAMETER" in r.stderr and "settle_steps" in r.stderr
 
 
 def _children(p):

@@ -64,3 +64,14 @@ def test_a_shard_draws_the_same_attempt_as_the_whole_run(square, tmp_path):
     assert r_whole.source_demos == r_shard.source_demos
     merged = merge_datasets([whole.dataset_path, shard.dataset_path], str(tmp_path / "merged.hdf5"))
     assert merged.num_demos == whole.successes + shard.successes
+
+
+def test_run_request_carries_the_release_settings(tmp_path):
+    from skillgen_ros.core.errors import SkillGenError
+    from skillgen_ros.core.generation.session import validate_request
+
+    cfg = RunRequest(settle_steps=3, release_moves=False).config()
+    assert (cfg.settle_steps, cfg.release_moves) == (3, False)
+    with pytest.raises(SkillGenError) as e:
+        validate_request(RunRequest(settle_steps=-1, output_dir=str(tmp_path / "o")), ["Square"])
+    assert e.value.reason == "INVALID_PARAMETER"

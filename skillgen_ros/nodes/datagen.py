@@ -8,7 +8,7 @@ maps the action goal onto a RunRequest, streams feedback (attempts, successes, r
 record the session through the recorder's services.
 
 Parameters (params/datagen.yaml): demos_dir, output_root, collision_source, action_noise,
-driver_node and video_camera_hz (the driver's camera rate while an attempt is filmed), and the
+settle_steps and release_moves (how the hand lets go before a planned motion), driver_node and video_camera_hz (the driver's camera rate while an attempt is filmed), and the
 per-call timeouts (timeout_reset, timeout_perception, timeout_plan, timeout_execute,
 timeout_skill, timeout_state).
 """
@@ -43,6 +43,8 @@ class DatagenNode(Node):
         self.declare_parameter("output_root", "out")
         self.declare_parameter("collision_source", "scene")
         self.declare_parameter("action_noise", 0.05)
+        self.declare_parameter("settle_steps", 10)
+        self.declare_parameter("release_moves", True)
         self.declare_parameter("driver_node", "sim_driver")
         self.declare_parameter("video_camera_hz", 10.0)
         for k, v in TIMEOUTS.items():
@@ -50,6 +52,8 @@ class DatagenNode(Node):
         src = str(self.get_parameter("collision_source").value)
         if src not in ("point_cloud", "scene"):
             raise ParameterError(f"collision_source must be point_cloud or scene, got {src!r}")
+        if int(self.get_parameter("settle_steps").value) < 0:
+            raise ParameterError(f"settle_steps must be >= 0, got {self.get_parameter('settle_steps').value}")
         timeouts = {k: float(self.get_parameter(f"timeout_{k}").value) for k in TIMEOUTS}
         if any(v <= 0 for v in timeouts.values()):
             raise ParameterError(f"timeouts must be > 0, got {timeouts}")
@@ -81,6 +85,8 @@ class DatagenNode(Node):
                           augment_translation=float(g.augment_translation or 0.08),
                           augment_rotation_deg=float(g.augment_rotation_deg or 80.0),
                           action_noise=float(self.get_parameter("action_noise").value),
+                          settle_steps=int(self.get_parameter("settle_steps").value),
+                          release_moves=bool(self.get_parameter("release_moves").value),
                           selection=g.selection or "random", output_dir=out, source_demos=g.source_demos,
                           **_video_attempts(g), **_initiation_candidates(g))
 

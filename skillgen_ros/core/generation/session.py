@@ -43,12 +43,15 @@ class RunRequest:
     max_steps: int = 3000
     video_attempts: int = 4  # attempts captured into the MP4 (successes and failures)
     initiation_candidates: int = 6  # skillgen: initiation poses tried per skill (1 = the paper)
+    settle_steps: int = 10  # periods to wait for fingers commanded open before a planned motion
+    release_moves: bool = True  # skillgen: unjam / follow moves after a release (release.py)
 
     def config(self) -> GenerationConfig:
         return GenerationConfig(variant=self.variant, action_noise=self.action_noise, selection=self.selection,
                                 augment=self.augment,
                                 augmentation=AugmentationConfig(self.augment_translation, self.augment_rotation_deg),
-                                max_steps=self.max_steps, initiation_candidates=self.initiation_candidates)
+                                max_steps=self.max_steps, initiation_candidates=self.initiation_candidates,
+                                settle_steps=self.settle_steps, release_moves=self.release_moves)
 
 
 def validate_request(req: RunRequest, known_tasks: Sequence[str]) -> None:

@@ -8,9 +8,9 @@ maps the action goal onto a RunRequest, streams feedback (attempts, successes, r
 record the session through the recorder's services.
 
 Parameters (params/datagen.yaml): demos_dir, output_root, collision_source, action_noise,
-settle_steps and release_moves (how the hand lets go before a planned motion), driver_node and video_camera_hz (the driver's camera rate while an attempt is filmed), and the
-per-call timeouts (timeout_reset, timeout_perception, timeout_plan, timeout_execute,
-timeout_skill, timeout_state).
+settle_steps and release_moves (how the hand lets go before a planned motion), driver_node and
+video_camera_hz (the driver's camera rate while an attempt is filmed), and the per-call timeouts
+(timeout_reset, timeout_perception, timeout_plan, timeout_execute, timeout_skill, timeout_state).
 """
 from __future__ import annotations
 

@@ -171,7 +171,6 @@ def test_scripted_actions_replay_open_loop_to_success():
     w.close()
 
 
-
 def _push_fingers(world, newtons: float, periods: int, command: float) -> list[float]:
     """Step holding the EE with `command`, pushing both fingers towards (+) or away from (-) each
     other with `newtons` each (as an object wedged against them would); the width after each period."""
@@ -202,8 +201,8 @@ def test_gripper_open_is_a_move_close_is_a_grasp(world):
     assert max(_push_fingers(world, 30.0, 15, -1.0)) < 0.01             # an opening move held by 30 N stalls
     widths = _push_fingers(world, 10.0, 20, -1.0)                         # against 10 N it still opens
     assert max(widths) > 0.078 and widths[-1] < 0.06                     # then yields to the same 10 N
-    _push_fingers(world, 0.0, 1, 1.0)                                     # a new command restarts the motor
-    assert _push_fingers(world, 0.0, 20, -1.0)[-1] > 0.079
+    _push_fingers(world, 10.0, 5, 1.0)                                    # a new command restarts the motor:
+    assert max(_push_fingers(world, 10.0, 20, -1.0)) > 0.078             # open against 10 N again
 
 
 @pytest.mark.parametrize("forces", [(20.0, -1.0), (20.0, 30.0), (np.inf, 2.0), (np.nan, 2.0)])

@@ -62,6 +62,10 @@ class NodeProcess:
         self.proc = subprocess.Popen(cmd, env=node_env(domain, **env), stdout=self.log,
                                      stderr=subprocess.STDOUT, text=True, cwd=REPO)
 
+    def output(self) -> str:
+        """Everything the node has written so far."""
+        return os.pread(self.log.fileno(), 1 << 24, 0).decode(errors="replace")
+
     def stop(self, timeout: float = 10.0) -> str:
         if self.proc.poll() is None:
             self.proc.send_signal(2)

@@ -2,7 +2,6 @@
 the same answers to bad input, and the driver keeps running with the robot where it was."""
 from __future__ import annotations
 
-import select
 import subprocess
 import sys
 import time
@@ -18,7 +17,7 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
-from conftest import REPO
+from conftest import REPO, wait_for
 from geometry_msgs.msg import Point, Pose as PoseMsg, PoseStamped, Quaternion
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
@@ -218,17 +217,8 @@ def test_driver_interface_and_bad_input(exe, start_node, client):
 def test_mock_driver_starts_without_pybullet(start_node, ros_domain):
     """The mock comes up and never imports pybullet. How fast it starts (goal: under 1 s) is measured
     in bench/sim_driver (`mock_driver_startup`), not here: a timed test fails on a loaded machine."""
-    t0 = time.monotonic()
-    proc = start_node("mock_driver", params=str(REPO / "params" / "mock_driver.yaml")).proc
-    up = None
-    while time.monotonic() - t0 < 20.0:
-        ready, _, _ = select.select([proc.stdout], [], [], 0.1)
-        if ready:
-            line = proc.stdout.readline()
-            if "mock_driver up" in line:
-                up = time.monotonic() - t0
-                break
-    assert up is not None, "mock_driver did not come up within 20 s"
+    node = start_node("mock_driver", params=str(REPO / "params" / "mock_driver.yaml"))
+    assert wait_for(lambda: "mock_driver up" in node.output(), 20.0), "mock_driver did not come up within 20 s"
     code = ("import sys; from skillgen_ros.nodes import mock_driver, driver_base; from skillgen_ros.core.sim import mock;"
             "mock.MockWorld().reset('Square', 'D0', 0); print('pybullet' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)

@@ -58,9 +58,9 @@ class NodeProcess:
         if params:
             cmd += ["--ros-args", "--params-file", params]
         self.exe = exe
-        self.log = tempfile.TemporaryFile("w+")
+        self.log = tempfile.TemporaryFile()
         self.proc = subprocess.Popen(cmd, env=node_env(domain, **env), stdout=self.log,
-                                     stderr=subprocess.STDOUT, text=True, cwd=REPO)
+                                     stderr=subprocess.STDOUT, cwd=REPO)
 
     def output(self) -> str:
         """Everything the node has written so far."""
@@ -74,8 +74,7 @@ class NodeProcess:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
-        self.log.seek(0)
-        return self.log.read()
+        return self.output()
 
 
 @pytest.fixture

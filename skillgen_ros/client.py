@@ -22,6 +22,7 @@ from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 
 from skillgen_interfaces.action import Generate
+from skillgen_ros.answered import first_answer, sleep_until_done
 from skillgen_ros.core.errors import SkillGenError
 
 
@@ -36,6 +37,7 @@ class SkillGenClient:
         self._feedback: Generate.Feedback | None = None
         self._goal = None
         self._result_future = None
+        self._answering = False
         self._spin = threading.Thread(target=self._spin_loop, daemon=True)
         self._stop = threading.Event()
         self._spin.start()
@@ -45,7 +47,17 @@ class SkillGenClient:
             self.executor.spin_once(timeout_sec=0.05)
 
     def wait_for_server(self, timeout: float = 30.0) -> bool:
-        return self.client.wait_for_server(timeout_sec=timeout)
+        """True once datagen answers: discovered, then a probe goal (empty task, rejected unrun)
+        answered, so the first real goal's answer cannot be lost to discovery (see answered.py)."""
+        if self._answering:
+            return True
+        end = time.monotonic() + timeout
+        if not self.client.wait_for_server(timeout_sec=timeout):
+            return False
+        probe = first_answer(lambda: self.client.send_goal_async(Generate.Goal(task="")), sleep_until_done,
+                             max(0.1, end - time.monotonic()))
+        self._answering = probe is not None
+        return self._answering
 
     def generate(self, timeout: float = 30.0, **fields) -> bool:
         """Send a Generate goal (fields as in Generate.action); True if accepted."""

@@ -65,6 +65,47 @@ def test_launch_forwards_ctrl_c_to_every_node(ros_domain, tmp_path):
             os.killpg(p.pid, signal.SIGKILL)
 
 
+def test_ctrl_c_during_start_up_stops_the_graph_cleanly(ros_domain, tmp_path):
+    """Ctrl-C while the launcher or its nodes are still starting: once it hung the launcher (a node
+    started after the forward never got it) and aborted the recorder (its io executor still
+    spinning at exit). Several moments of start-up; each must end at once, exit 0, bag finalized."""
+    for k, delay in enumerate((0.4, 0.9, 1.5, 2.2)):
+        cwd = tmp_path / str(k)
+        cwd.mkdir()
+        p = subprocess.Popen(SKILLGEN + ["launch", "mock_record"], env=node_env(ros_domain), stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, cwd=cwd, start_new_session=True)
+        try:
+            time.sleep(delay)
+            p.send_signal(signal.SIGINT)
+            rc = p.wait(30)
+            err = p.stderr.read()
+            assert rc == 0 and "terminate called" not in err and "Traceback" not in err, (delay, rc, err)
+            assert all((b / "metadata.yaml").exists() for b in cwd.glob("bags/rec_*")), delay
+        finally:
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGKILL)
+
+
+def test_a_node_that_ignores_ctrl_c_is_named_dumped_and_terminated():
+    from skillgen_ros.cli.launcher import _escalate
+
+    stubborn = ("import faulthandler, signal, time\n"
+                "faulthandler.register(signal.SIGUSR1, all_threads=True)\n"
+                "signal.signal(signal.SIGINT, signal.SIG_IGN)\n"
+                "print('up', flush=True)\n"
+                "def waiting_forever():\n    time.sleep(60)\nwaiting_forever()\n")
+    p = subprocess.Popen([sys.executable, "-c", stubborn], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().strip() == "up"
+        p.send_signal(signal.SIGINT)
+        assert _escalate([("stubborn", p)]) == ["stubborn"]
+        assert p.wait(10) == -signal.SIGTERM
+        assert "waiting_forever" in p.stderr.read()  # its stack, for the CI log
+    finally:
+        if p.poll() is None:
+            p.kill()
+
+
 def test_launch_names_the_node_that_died_and_stops_the_rest(ros_domain, tmp_path):
     p = subprocess.Popen(SKILLGEN + ["launch", "mock_record"], env=node_env(ros_domain),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,

@@ -43,7 +43,9 @@ def run(exe: str, args: list[str]) -> int:
     return 0  # not reached
 
 
-def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.1) -> int:
+def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.1, stop_timeout: float = 15.0) -> int:
+    """Run a graph until Ctrl-C or a node dies; a node still running `stop_timeout` s after the
+    stop is named, has its Python stacks dumped (SIGUSR1, runtime.py) and is terminated."""
     nodes = load_graph(graph)
     env = rosenv.node_environment(dict(os.environ))
     procs: list[tuple[str, subprocess.Popen]] = []
@@ -58,10 +60,17 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
     old = {s: signal.signal(s, _forward) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         for proc in processes(nodes):
+            if stopping["flag"]:  # Ctrl-C while starting: start no more
+                break
             cmd = [str(resolve_executable(proc.exe)), *proc.args, *(extra_ros_args or [])]
             print(f"[launch] starting {proc.label}: {' '.join(cmd)}", file=sys.stderr, flush=True)
-            procs.append((proc.label, subprocess.Popen(cmd, env=env)))
+            child = subprocess.Popen(cmd, env=env)
+            procs.append((proc.label, child))
+            if stopping["flag"]:  # the signal came while this one was starting: it missed the forward
+                child.send_signal(signal.SIGINT)
         failed: tuple[str, int] | None = None
+        stop_deadline: float | None = None
+        escalated: list[str] = []
         while True:
             alive = [(name, p) for name, p in procs if p.poll() is None]
             if not stopping["flag"]:
@@ -77,11 +86,17 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
                     stopping["flag"] = True
             if not alive:
                 break
+            if stopping["flag"] and stop_deadline is None:
+                stop_deadline = time.monotonic() + stop_timeout
+            if stop_deadline is not None and time.monotonic() > stop_deadline:
+                escalated = _escalate(alive)
+                break
             time.sleep(poll)
         _wait_all(procs, timeout=10.0)
         if failed:
             return failed[1] if failed[1] > 0 else 1
-        bad = [(n, p.returncode) for n, p in procs if p.returncode not in (0, -signal.SIGINT, -signal.SIGTERM)]
+        bad = [(n, p.returncode) for n, p in procs
+               if n in escalated or p.returncode not in (0, -signal.SIGINT, -signal.SIGTERM)]
         for n, rc in bad:
             print(f"[launch] node '{n}' exited with code {rc}", file=sys.stderr)
         return 1 if bad else 0
@@ -91,6 +106,20 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
         for _, p in procs:
             if p.poll() is None:
                 p.kill()
+
+
+def _escalate(alive: list[tuple[str, subprocess.Popen]]) -> list[str]:
+    """What ros2 launch does to a node that ignores SIGINT (SIGTERM, then SIGKILL via _wait_all),
+    plus its stacks on stderr, so a hang is diagnosable from a CI log."""
+    for name, p in alive:
+        print(f"[launch] node '{name}' did not stop after Ctrl-C; its stacks, then SIGTERM:", file=sys.stderr, flush=True)
+        try:
+            p.send_signal(signal.SIGUSR1)
+            time.sleep(0.5)
+            p.send_signal(signal.SIGTERM)
+        except ProcessLookupError:
+            pass
+    return [name for name, _ in alive]
 
 
 def _wait_all(procs, timeout: float) -> None:

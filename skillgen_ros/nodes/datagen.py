@@ -98,8 +98,9 @@ class DatagenNode(Node):
         self.env.demos_dir = d
         return load_source_demos(paths, get_task(req.task))
 
-    def _on_goal(self, _goal):
-        return GoalResponse.REJECT if self._busy.locked() else GoalResponse.ACCEPT
+    def _on_goal(self, goal):
+        """Busy: reject. An empty task is a readiness probe (skillgen_ros/answered.py): reject, run nothing."""
+        return GoalResponse.REJECT if self._busy.locked() or not goal.task else GoalResponse.ACCEPT
 
     def _execute(self, goal_handle):
         with self._busy:

@@ -148,18 +148,19 @@ class Recorder(Node):
         self._io_exec.add_node(self._io_node)
         self._io_thread = threading.Thread(target=self._spin_io, name="recorder-io", daemon=True)
         self._io_thread.start()
-        srv_group = MutuallyExclusiveCallbackGroup()
-        for name, handler in (("start", self._on_start), ("stop", self._on_stop),
-                              ("pause", self._on_pause), ("resume", self._on_resume)):
-            self.create_service(RecorderSrv, f"recorder/{name}", handler, callback_group=srv_group)
-        self.create_timer(float(p["discovery_period"]), self._discover, callback_group=srv_group)
-        if p["autostart"]:
-            ok, msg = self.start()
-            if not ok:  # stop the io thread first: a spinning executor at exit aborts the process
-                self._io_exec.shutdown(timeout_sec=1.0)
-                self._io_thread.join(timeout=2.0)
-                self._io_node.destroy_node()
-                raise BagError(msg, "RECORDER_START_FAILED")
+        try:  # from here a failure (or Ctrl-C) must stop the io thread: see _close
+            srv_group = MutuallyExclusiveCallbackGroup()
+            for name, handler in (("start", self._on_start), ("stop", self._on_stop),
+                                  ("pause", self._on_pause), ("resume", self._on_resume)):
+                self.create_service(RecorderSrv, f"recorder/{name}", handler, callback_group=srv_group)
+            self.create_timer(float(p["discovery_period"]), self._discover, callback_group=srv_group)
+            if p["autostart"]:
+                ok, msg = self.start()
+                if not ok:
+                    raise BagError(msg, "RECORDER_START_FAILED")
+        except BaseException:
+            self._close()
+            raise
 
     # -- control ----------------------------------------------------------------------------
     def start(self, output: str = "", topics: list[str] | None = None) -> tuple[bool, str]:
@@ -278,12 +279,19 @@ class Recorder(Node):
         except (ExternalShutdownException, KeyboardInterrupt):
             pass
 
-    def destroy_node(self):
-        """Shutdown path (SIGINT/SIGTERM via run_node): finalize the bag before going away."""
+    def _close(self) -> None:
+        """Finalize the bag and stop the io thread. A process that exits with an executor still
+        spinning aborts ("terminate called without an active exception"): seen when Ctrl-C landed
+        while the node was being built, so that path closes too."""
         if self._state != State.IDLE:
             self.stop()
         self._io_exec.shutdown(timeout_sec=1.0)
+        self._io_thread.join(timeout=2.0)
         self._io_node.destroy_node()
+
+    def destroy_node(self):
+        """Shutdown path (SIGINT/SIGTERM via run_node): finalize the bag before going away."""
+        self._close()
         return super().destroy_node()
 
 

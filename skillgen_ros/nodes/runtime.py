@@ -1,15 +1,19 @@
 """The one way every node process starts and stops.
 
 `run_node(factory)` does what ros2/demos do: init, an explicit executor, Ctrl-C and external
-shutdown caught, no traceback on exit, exit status 0 for a clean stop. User mistakes exit 2 with
+shutdown caught, no traceback on exit, exit status 0 for a clean stop, at any moment of start-up
+too. Ctrl-C never raises KeyboardInterrupt here (see _quiet_stop_signals); SIGUSR1 dumps every
+thread's stack to stderr (what `skillgen launch` does to a node that does not stop). User mistakes exit 2 with
 one line "REASON: message" instead of a trace: an unparsable params file, a parameter of the wrong
 type, or a `SkillGenError` (e.g. ParameterError) raised while the node is built.
 (rclpy in Jazzy has no context-manager `init`, hence the explicit try/finally.)
 """
 from __future__ import annotations
 
+import faulthandler
 import signal
 import sys
+import threading
 from typing import Callable
 
 from skillgen_ros import rosenv  # noqa: F401  (sets loopback discovery before rclpy loads)
@@ -24,6 +28,17 @@ from skillgen_ros.core.errors import SkillGenError
 def _fail(name: str, reason: str, msg: str) -> int:
     print(f"[{name}] {reason}: {msg}", file=sys.stderr, flush=True)
     return 2
+
+
+def _quiet_stop_signals() -> threading.Event:
+    """SIGINT/SIGTERM set an event instead of raising KeyboardInterrupt. Installed before
+    rclpy.init, whose handler shuts the context down (the executor's spin returns) and then calls
+    this one. A KeyboardInterrupt can land anywhere, inside rclpy's executor too: it once left a node
+    handle marked in use, and destroy_node then waited forever (a launch Ctrl-C test hung in CI)."""
+    stop = threading.Event()
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, lambda _signum, _frame: stop.set())
+    return stop
 
 
 def run_node(factory: Callable[[], "rclpy.node.Node"], args=None, threads: int = 4, name: str = "",
@@ -41,6 +56,8 @@ def run_nodes(factories: list[Callable[[], "rclpy.node.Node"]], args=None, threa
     """Several nodes in this process on one executor (ROS 2 composition; see nodes/container.py):
     single-threaded only if every node asks for it (`executor_kind`, else `executor`)."""
     args = sys.argv if args is None else args
+    faulthandler.register(signal.SIGUSR1, all_threads=True)  # `skillgen launch` asks a hung node for its stacks
+    stop = _quiet_stop_signals()
     try:
         rclpy.init(args=args)
     except rclpy._rclpy_pybind11.RCLError as e:  # bad --ros-args / unparsable params file
@@ -50,10 +67,16 @@ def run_nodes(factories: list[Callable[[], "rclpy.node.Node"]], args=None, threa
         try:
             for factory in factories:
                 nodes.append(factory())
-        except SkillGenError as e:
-            return _fail(name, e.reason, str(e.args[0]))
-        except ParameterException as e:  # wrong type / unset required parameter in the params file
-            return _fail(name, "INVALID_PARAMETER", str(e))
+                if stop.is_set():  # Ctrl-C before rclpy's handler was in: it never saw it
+                    return 0
+        except Exception as e:  # noqa: BLE001 - sorted below
+            if stop.is_set() or not rclpy.ok():
+                return 0  # Ctrl-C while a node was being built: rclpy shut the context down under it
+            if isinstance(e, SkillGenError):
+                return _fail(name, e.reason, str(e.args[0]))
+            if isinstance(e, ParameterException):  # wrong type / unset required parameter in the params file
+                return _fail(name, "INVALID_PARAMETER", str(e))
+            raise
         single = all(getattr(n, "executor_kind", executor) == "single" for n in nodes)
         ex = SingleThreadedExecutor() if single else MultiThreadedExecutor(num_threads=threads)
         for n in nodes:

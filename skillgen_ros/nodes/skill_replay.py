@@ -112,8 +112,9 @@ class SkillReplayNode(Node):
         return await fut
 
     # -- action
-    def _on_goal(self, goal: ReplaySkill.Goal):
-        return GoalResponse.REJECT if self._busy else GoalResponse.ACCEPT
+    def _on_goal(self, goal):
+        """Busy: reject. An empty task is a readiness probe (skillgen_ros/answered.py): reject, run nothing."""
+        return GoalResponse.REJECT if self._busy or not goal.task else GoalResponse.ACCEPT
 
     def demos_for(self, task: str, directory: str):
         d = directory or str(Path(self.get_parameter("demos_dir").value) / task)

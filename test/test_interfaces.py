@@ -12,6 +12,7 @@ from skillgen_interfaces.msg import OscTarget
 from skillgen_interfaces.srv import TaskSuccess
 
 from conftest import client_node, node_env
+from skillgen_ros.answered import first_answer
 
 HERE = Path(__file__).parent
 
@@ -46,9 +47,9 @@ def test_custom_interfaces_across_processes(echo_process, ros_domain):
         # service
         cli = node.create_client(TaskSuccess, "echo_success")
         assert cli.wait_for_service(timeout_sec=10)
-        fut = cli.call_async(TaskSuccess.Request())
-        ex.spin_until_future_complete(fut, timeout_sec=10)
-        assert fut.result().success and fut.result().message == "from another process"
+        echo = first_answer(lambda: cli.call_async(TaskSuccess.Request()),
+                            lambda f, s: ex.spin_until_future_complete(f, timeout_sec=s), timeout=20)
+        assert echo is not None and echo.success and echo.message == "from another process"
 
         # action with feedback
         ac = ActionClient(node, Gripper, "echo_gripper")

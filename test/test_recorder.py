@@ -18,6 +18,7 @@ from skillgen_interfaces.msg import OscTarget
 from skillgen_interfaces.srv import Recorder as RecorderSrv
 
 from conftest import wait_for
+from skillgen_ros.answered import first_answer, sleep_until_done
 from skillgen_ros.core.bag.reader import BagReader
 from skillgen_ros.core.bag.recover import recover_bag
 
@@ -109,7 +110,10 @@ def test_services_start_pause_resume_stop(tmp_path, start_node, ros_node):
         assert wait_for(fut.done, 10)
         return fut.result()
 
-    assert not call("pause").success  # nothing to pause yet
+    # nothing to pause yet; idempotent, so resent until answered (a first answer can be lost to discovery)
+    first = first_answer(lambda: clients["pause"].call_async(RecorderSrv.Request()), sleep_until_done, timeout=30)
+    assert first is not None and not first.success
+    assert not call("pause").success
     res = call("start", output=str(bag))
     assert res.success and Path(res.bag_path) == bag
     assert not call("start", output=str(tmp_path / "other")).success

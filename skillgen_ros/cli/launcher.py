@@ -4,7 +4,8 @@ Executables are resolved through the ament index (<prefix>/lib/skillgen_ros/<exe
 `ros2 run` does, and every child gets the loopback-only ROS environment and one math thread
 (rosenv.node_environment). `launch` starts a graph's nodes as separate processes, forwards
 Ctrl-C/SIGTERM to them, and if one dies on its own it names that node, stops the rest and exits
-non-zero.
+non-zero. A node still running 15 s after the stop is named, asked for its stacks (SIGUSR1) and
+terminated, like ros2 launch's SIGTERM/SIGKILL escalation.
 """
 from __future__ import annotations
 

@@ -2,10 +2,11 @@
 
 `run_node(factory)` does what ros2/demos do: init, an explicit executor, Ctrl-C and external
 shutdown caught, no traceback on exit, exit status 0 for a clean stop, at any moment of start-up
-too. Ctrl-C never raises KeyboardInterrupt here (see _quiet_stop_signals); SIGUSR1 dumps every
-thread's stack to stderr (what `skillgen launch` does to a node that does not stop). User mistakes exit 2 with
-one line "REASON: message" instead of a trace: an unparsable params file, a parameter of the wrong
-type, or a `SkillGenError` (e.g. ParameterError) raised while the node is built.
+too. Ctrl-C never raises KeyboardInterrupt here (see _quiet_stop_signals). SIGUSR1 dumps every
+thread's stack to stderr (`skillgen launch` does that to a node that does not stop).
+User mistakes exit 2 with one line "REASON: message" instead of a trace: an unparsable params
+file, a parameter of the wrong type, or a `SkillGenError` (e.g. ParameterError) raised while the
+node is built.
 (rclpy in Jazzy has no context-manager `init`, hence the explicit try/finally.)
 """
 from __future__ import annotations

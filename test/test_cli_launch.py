@@ -38,9 +38,12 @@ def test_invalid_params_file_is_a_clear_error(ros_domain, tmp_path):
     r = _run(["run", "mock_driver", "--ros-args", "--params-file", str(wrong)], node_env(ros_domain))
     assert r.returncode == 2 and "INVALID_PARAMETER" in r.stderr and "Traceback" not in r.stderr
     release = tmp_path / "release.yaml"
-    release.write_text("datagen:\n  ros__parameters:\n    settle_steps: -1\n")
-    r = _run(["run", "datagen", "--ros-args", "--params-file", str(release)], node_env(ros_domain))
-    assert r.returncode == 2 and "INVALID_PARAMETER" in r.stderr and "settle_steps" in r.stderr
+    for bad in ("settle_steps: -1", "unjam_step: 0.0", "follow: .nan"):
+        release.write_text(f"datagen:\n  ros__parameters:\n    release:\n      {bad}\n")
+        r = _run(["run", "datagen", "--ros-args", "--params-file", str(release)], node_env(ros_domain))
+        named = bad.split(":")[0] + "="  # the message names the bad setting, not just the whole config
+        assert r.returncode == 2 and "INVALID_PARAMETER" in r.stderr and named in r.stderr, (bad, r.stderr)
+        assert sum(f"{k}=" in r.stderr for k in ("settle_steps", "unjam_step", "follow")) == 1, r.stderr
 
 
 def _children(p):

@@ -8,6 +8,7 @@ from _generation_fakes import FakeTask, FakeWorld, make_source_demos
 from scipy.spatial.transform import Rotation
 
 from skillgen_ros.core.generation.attempt import FailureReason, GenerationConfig, run_attempt
+from skillgen_ros.core.generation.release import ReleaseConfig
 from skillgen_ros.core.generation.initiation import (grasp_in_demo, initiation_candidates, same_grasp,
                                                      symmetry_frames)
 
@@ -140,7 +141,7 @@ def test_planned_motion_waits_for_an_opening_gripper(demos):
     np.testing.assert_allclose(r.episode.obs["robot0_eef_pos"][held], r.episode.obs["robot0_eef_pos"][held[:1]].repeat(5, 0))
     assert (r.episode.actions[held, :6] == 0).all() and (r.episode.actions[held, 6] == -1).all()
     assert r.episode.num_samples == run_attempt(FakeWorld(), demos, FakeTask(), "skillgen", 0, 5, CFG).episode.num_samples + 5
-    none = run_attempt(SlowFingers(), demos, FakeTask(), "skillgen", 0, 5, replace(CFG, settle_steps=0))
+    none = run_attempt(SlowFingers(), demos, FakeTask(), "skillgen", 0, 5, replace(CFG, release=ReleaseConfig(settle_steps=0)))
     assert none.episode.num_samples == r.episode.num_samples - 5
 
 
@@ -174,5 +175,5 @@ def test_wedged_fingers_are_freed_before_the_planned_motion(demos):
     np.testing.assert_allclose(pos[2:5], pos[[2, 2, 2]])
     np.testing.assert_allclose(pos[5:9], pos[[0, 0, 0, 0]])
     assert (act[:8, 6] == -1).all() and (act[:8, 3:6] == 0).all()
-    off = run_attempt(WedgedFingers(), demos, FakeTask(), "skillgen", 0, 5, replace(CFG, release_moves=False))
+    off = run_attempt(WedgedFingers(), demos, FakeTask(), "skillgen", 0, 5, replace(CFG, release=ReleaseConfig().without_moves()))
     assert off.episode.num_samples == r.episode.num_samples - 7  # only the stall-finding hold

@@ -70,8 +70,13 @@ def test_run_request_carries_the_release_settings(tmp_path):
     from skillgen_ros.core.errors import SkillGenError
     from skillgen_ros.core.generation.session import validate_request
 
-    cfg = RunRequest(settle_steps=3, release_moves=False).config()
-    assert (cfg.settle_steps, cfg.release_moves) == (3, False)
-    with pytest.raises(SkillGenError) as e:
-        validate_request(RunRequest(settle_steps=-1, output_dir=str(tmp_path / "o")), ["Square"])
-    assert e.value.reason == "INVALID_PARAMETER"
+    from skillgen_ros.core.generation.release import ReleaseConfig
+
+    release = ReleaseConfig(settle_steps=3, unjam_max=0.02).without_moves()
+    cfg = RunRequest(release=release).config()
+    assert cfg.release == release and (cfg.release.settle_steps, cfg.release.unjam_max, cfg.release.follow) == (3, 0, 0)
+    validate_request(RunRequest(release=release, output_dir=str(tmp_path / "o")), ["Square"])
+    for bad in (dict(settle_steps=-1), dict(unjam_step=0.0), dict(follow=float("nan")), dict(drift_max=-0.001)):
+        with pytest.raises(SkillGenError) as e:
+            ReleaseConfig(**bad)
+        assert e.value.reason == "INVALID_PARAMETER", bad

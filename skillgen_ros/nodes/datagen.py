@@ -8,7 +8,7 @@ maps the action goal onto a RunRequest, streams feedback (attempts, successes, r
 record the session through the recorder's services.
 
 Parameters (params/datagen.yaml): demos_dir, output_root, collision_source, action_noise,
-settle_steps and release_moves (how the hand lets go before a planned motion), driver_node and
+release.* (how the hand lets go before a planned motion: core/generation/release.py), driver_node and
 video_camera_hz (the driver's camera rate while an attempt is filmed), and the per-call timeouts
 (timeout_reset, timeout_perception, timeout_plan, timeout_execute, timeout_skill, timeout_state).
 """
@@ -26,7 +26,8 @@ from rclpy.node import Node
 from skillgen_interfaces.action import Generate
 from skillgen_interfaces.msg import FailureCount
 from skillgen_interfaces.srv import PlanToPose, Recorder, RunAttempt
-from skillgen_ros.core.errors import ParameterError, SkillGenError
+from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
+from skillgen_ros.core.generation.release import ReleaseConfig
 from skillgen_ros.core.generation.session import RunRequest, run_generation, validate_request
 from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
 from skillgen_ros.core.tasks import TASK_NAMES, get_task
@@ -34,6 +35,8 @@ from skillgen_ros.nodes.graph_env import RosGraphEnv
 from skillgen_ros.nodes.runtime import run_node
 
 TIMEOUTS = {"reset": 30.0, "perception": 20.0, "plan": 10.0, "execute": 60.0, "skill": 120.0, "state": 10.0}
+# release.* parameters: `moves` switches unjam/follow off; the rest are ReleaseConfig's fields
+_RELEASE_PARAMS = {"moves": True, **{f: getattr(ReleaseConfig(), f) for f in ReleaseConfig.__dataclass_fields__}}
 
 
 class DatagenNode(Node):
@@ -43,8 +46,8 @@ class DatagenNode(Node):
         self.declare_parameter("output_root", "out")
         self.declare_parameter("collision_source", "scene")
         self.declare_parameter("action_noise", 0.05)
-        self.declare_parameter("settle_steps", 10)
-        self.declare_parameter("release_moves", True)
+        for k, v in _RELEASE_PARAMS.items():
+            self.declare_parameter(f"release.{k}", v)
         self.declare_parameter("driver_node", "sim_driver")
         self.declare_parameter("video_camera_hz", 10.0)
         for k, v in TIMEOUTS.items():
@@ -52,8 +55,7 @@ class DatagenNode(Node):
         src = str(self.get_parameter("collision_source").value)
         if src not in ("point_cloud", "scene"):
             raise ParameterError(f"collision_source must be point_cloud or scene, got {src!r}")
-        if int(self.get_parameter("settle_steps").value) < 0:
-            raise ParameterError(f"settle_steps must be >= 0, got {self.get_parameter('settle_steps').value}")
+        self._release = self._release_config()
         timeouts = {k: float(self.get_parameter(f"timeout_{k}").value) for k in TIMEOUTS}
         if any(v <= 0 for v in timeouts.values()):
             raise ParameterError(f"timeouts must be > 0, got {timeouts}")
@@ -74,6 +76,16 @@ class DatagenNode(Node):
         self.create_service(RunAttempt, "run_attempt", self._run_attempt, callback_group=MutuallyExclusiveCallbackGroup())
         self.get_logger().info("datagen ready: action 'generate', service 'run_attempt'")
 
+    def _release_config(self) -> ReleaseConfig:
+        """The `release.*` parameters as a ReleaseConfig; a bad value is INVALID_PARAMETER at start-up."""
+        v = {k: self.get_parameter(f"release.{k}").value for k in _RELEASE_PARAMS}
+        moves = bool(v.pop("moves"))
+        try:
+            cfg = ReleaseConfig(**{k: type(_RELEASE_PARAMS[k])(x) for k, x in v.items()})
+        except (InvalidInputError, TypeError, ValueError) as e:
+            raise ParameterError(f"release.*: {e}") from None
+        return cfg if moves else cfg.without_moves()
+
     # -- request handling
     def _request(self, g) -> RunRequest:
         out = g.output_dir or os.path.join(str(self.get_parameter("output_root").value),
@@ -85,8 +97,7 @@ class DatagenNode(Node):
                           augment_translation=float(g.augment_translation or 0.08),
                           augment_rotation_deg=float(g.augment_rotation_deg or 80.0),
                           action_noise=float(self.get_parameter("action_noise").value),
-                          settle_steps=int(self.get_parameter("settle_steps").value),
-                          release_moves=bool(self.get_parameter("release_moves").value),
+                          release=self._release,
                           selection=g.selection or "random", output_dir=out, source_demos=g.source_demos,
                           **_video_attempts(g), **_initiation_candidates(g))
 

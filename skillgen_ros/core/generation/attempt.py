@@ -72,17 +72,14 @@ class GenerationConfig:
     # skillgen: (source demo, symmetric object frame) pairs tried for a skill whose initiation pose
     # has no collision-free IK (initiation.py); 1 = the paper (the attempt fails on the first).
     initiation_candidates: int = 6
-    # skillgen: control periods to hold still, before a planned motion, while a gripper that was
-    # commanded open is still opening (the fast retreat would drag the object just released)
-    settle_steps: int = 10
-    # skillgen: free the released object before the motion (release.py): fingers that stopped short
-    # of open are unjammed by sliding the hand in its plane, and a hand pushed off its last target
-    # by an open finger moves on along the push; False = only the settle
-    release_moves: bool = True
+    # before a planned motion, let the object just released come free of the hand (release.py):
+    # hold while the fingers open (settle), unjam fingers stopped short of open, follow a push by
+    # an open finger. ReleaseConfig().without_moves() = only the settle.
+    release: ReleaseConfig = ReleaseConfig()
 
     def __post_init__(self):
         if (self.action_noise < 0 or self.interpolation_steps < 0 or self.fixed_steps < 0 or self.max_steps < 1
-                or self.initiation_candidates < 1 or self.settle_steps < 0):
+                or self.initiation_candidates < 1):
             raise InvalidInputError(f"invalid generation config {self}", reason="INVALID_PARAMETER")
 
 
@@ -212,9 +209,8 @@ class _Attempt:
         """Before a planned motion: let the object just released come free of the hand (release.py)."""
         if self.gripper > 0:
             return
-        cfg = ReleaseConfig(settle_steps=self.cfg.settle_steps) if self.cfg.release_moves else \
-            ReleaseConfig(settle_steps=self.cfg.settle_steps, unjam_max=0.0, follow=0.0)
-        moves = release_targets(self.obs.ee_matrix(), float(np.sum(self.obs.gripper)), cfg, self.last_target)
+        moves = release_targets(self.obs.ee_matrix(), float(np.sum(self.obs.gripper)), self.cfg.release,
+                                self.last_target)
         t = time.perf_counter()
         try:
             target = next(moves, None)

@@ -23,10 +23,12 @@ sent a `Feedback` after each.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Generator, NamedTuple
 
 import numpy as np
+
+from ..errors import InvalidInputError
 
 OPEN_WIDTH = 0.075  # m between the fingers that counts as open: the Panda hand opens to 0.08
 
@@ -47,6 +49,18 @@ class ReleaseConfig:
     drift_max: float = 0.008  # m off the last target beyond which an open finger is pressing
     follow: float = 0.015  # m to move on along the drift (0 = no follow)
     follow_steps: int = 6
+
+    def __post_init__(self):
+        positive = ("stall_eps", "unjam_step", "progress")
+        bad = [f"{f}={getattr(self, f)}" for f in self.__dataclass_fields__
+               if not np.isfinite(getattr(self, f)) or getattr(self, f) < 0 or (f in positive and getattr(self, f) == 0)]
+        if bad:
+            raise InvalidInputError(f"invalid release setting {', '.join(bad)}: each must be finite and >= 0, and "
+                                    f"{', '.join(positive)} > 0", reason="INVALID_PARAMETER")
+
+    def without_moves(self) -> "ReleaseConfig":
+        """Only the settle: no unjam, no follow (MimicGen-style baselines, or `release.moves: false`)."""
+        return replace(self, unjam_max=0.0, follow=0.0)
 
 
 Releaser = Generator[np.ndarray, Feedback, None]

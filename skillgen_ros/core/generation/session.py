@@ -19,6 +19,7 @@ from ..errors import InvalidInputError, UnknownTaskError
 from ..skills.augmentation import AugmentationConfig
 from ..skills.segment import SourceDemo
 from .attempt import METHODS, AttemptResult, GenerationConfig, GenerationEnv, run_attempt
+from .release import ReleaseConfig
 from .selection import make_strategy
 
 
@@ -43,15 +44,14 @@ class RunRequest:
     max_steps: int = 3000
     video_attempts: int = 4  # attempts captured into the MP4 (successes and failures)
     initiation_candidates: int = 6  # skillgen: initiation poses tried per skill (1 = the paper)
-    settle_steps: int = 10  # periods to wait for fingers commanded open before a planned motion
-    release_moves: bool = True  # skillgen: unjam / follow moves after a release (release.py)
+    release: ReleaseConfig = ReleaseConfig()  # how the hand lets go before a planned motion (release.py)
 
     def config(self) -> GenerationConfig:
         return GenerationConfig(variant=self.variant, action_noise=self.action_noise, selection=self.selection,
                                 augment=self.augment,
                                 augmentation=AugmentationConfig(self.augment_translation, self.augment_rotation_deg),
                                 max_steps=self.max_steps, initiation_candidates=self.initiation_candidates,
-                                settle_steps=self.settle_steps, release_moves=self.release_moves)
+                                release=self.release)
 
 
 def validate_request(req: RunRequest, known_tasks: Sequence[str]) -> None:

@@ -8,9 +8,9 @@ from _generation_fakes import FakeTask, FakeWorld, make_source_demos
 from scipy.spatial.transform import Rotation
 
 from skillgen_ros.core.generation.attempt import FailureReason, GenerationConfig, run_attempt
-from skillgen_ros.core.generation.release import ReleaseConfig
 from skillgen_ros.core.generation.initiation import (grasp_in_demo, initiation_candidates, same_grasp,
                                                      symmetry_frames)
+from skillgen_ros.core.generation.release import ReleaseConfig
 
 CFG = GenerationConfig(variant="D1")
 

@@ -8,9 +8,10 @@ One part again, updating the JSON in place (e.g. the graph overhead: 3 pairs of 
     .venv/bin/python bench/datagen/run.py --only graph_overhead
 Some methods' cells again (the others and the extras stay as they are in the JSON):
     .venv/bin/python bench/datagen/run.py --attempts 200 --workers 2 --methods skillgen skillgen+IA
-The D0 cells on another seed, into their own JSON (a check that a cell's gap to the paper is noise):
-    .venv/bin/python bench/datagen/run.py --workers 2 --seed 2000 --tasks Square NutAssembly --variants D0 \
-        --methods skillgen --out bench/results/datagen_seed2000.json
+The D0 cells on other seeds, each into its own JSON (a check that a cell's gap to the paper is not
+noise; the README pools seeds 1000-4000), ~6 min per seed:
+    for s in 2000 3000 4000; do .venv/bin/python bench/datagen/run.py --workers 2 --seed $s \
+        --tasks Square NutAssembly --variants D0 --methods skillgen --out bench/results/datagen_seed$s.json; done
 
 Success cells run in-process (SimGenerationEnv: the same Algorithm 1, dataset writer and seeds as
 the datagen node) with fixed seeds; the graph-overhead cell runs the same attempts through the

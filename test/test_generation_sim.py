@@ -80,3 +80,17 @@ def test_run_request_carries_the_release_settings(tmp_path):
         with pytest.raises(SkillGenError) as e:
             ReleaseConfig(**bad)
         assert e.value.reason == "INVALID_PARAMETER", bad
+
+
+def test_env_config_velocity_scale_reaches_the_planner_and_is_checked():
+    from skillgen_ros.core.errors import SkillGenError
+
+    env = SimGenerationEnv(SimEnvConfig(perception="ground_truth", velocity_scale=0.7))
+    try:
+        assert env.planner.velocity_scale == 0.7
+    finally:
+        env.close()
+    for bad in (0.0, 1.5, float("nan")):
+        with pytest.raises(SkillGenError) as e:
+            SimEnvConfig(velocity_scale=bad)
+        assert e.value.reason == "INVALID_PARAMETER", bad

@@ -12,6 +12,9 @@ The D0 cells on other seeds, each into its own JSON (a check that a cell's gap t
 noise; the README pools seeds 1000-4000), ~6 min per seed:
     for s in 2000 3000 4000; do .venv/bin/python bench/datagen/run.py --workers 2 --seed $s \
         --tasks Square NutAssembly --variants D0 --methods skillgen --out bench/results/datagen_seed$s.json; done
+An A/B of the planned motions' speed (cells only; a separate JSON so the table stays one setting):
+    .venv/bin/python bench/datagen/run.py --seed 3000 --tasks NutAssembly --variants D0 --methods skillgen \
+        --velocity-scale 0.7 --out bench/results/datagen_vs07_seed3000.json
 
 Success cells run in-process (SimGenerationEnv: the same Algorithm 1, dataset writer and seeds as
 the datagen node) with fixed seeds; the graph-overhead cell runs the same attempts through the
@@ -44,7 +47,7 @@ METHODS = [("skillgen", False), ("mimicgen", False), ("skillgen", True)]
 
 
 def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int, seed: int,
-             perception: str, images: bool = False) -> dict:
+             perception: str, images: bool = False, velocity_scale: float = 1.0) -> dict:
     """One (task, variant, method) cell in this process; returns counts, CI and timings."""
     from skillgen_ros.core.dataset.paper import paper_rate
     from skillgen_ros.core.dataset.report import wilson_interval
@@ -55,7 +58,7 @@ def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int,
 
     task_spec = get_task(task)
     demos = load_source_demos(expand_bag_paths([str(ROOT / "bags" / task)]), task_spec)
-    env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, images=images))
+    env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, images=images, velocity_scale=velocity_scale))
     with tempfile.TemporaryDirectory() as out:
         req = RunRequest(task=task, variant=variant, method=method, attempts=attempts, seed=seed, augment=augment,
                          output_dir=os.path.join(out, "run"), video_attempts=0)
@@ -65,7 +68,7 @@ def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int,
     env.close()
     lo, hi = wilson_interval(run.successes, run.attempts)
     return {"task": task, "variant": variant, "method": method, "augment": augment, "perception": perception,
-            "images": images, "attempts": run.attempts, "successes": run.successes,
+            "images": images, "velocity_scale": velocity_scale, "attempts": run.attempts, "successes": run.successes,
             "rate": run.successes / run.attempts, "wilson95": [lo, hi],
             "paper_rate": paper_rate(task, variant, method, augment),
             "failures": {k: v for k, v in run.failures.items() if v},
@@ -157,6 +160,9 @@ def main(argv=None) -> int:
     ap.add_argument("--tasks", nargs="*", default=list(CELLS_FULL))
     ap.add_argument("--variants", nargs="*", default=[], help="only these variants (default: all of each task)")
     ap.add_argument("--skip-graph", action="store_true")
+    ap.add_argument("--velocity-scale", type=float, default=1.0,
+                    help="planned motions' fraction of the Panda's V/A/J limits in the cells (A/B of the timing; "
+                         "the extras keep graphs.yaml's 1.0)")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "datagen.json"))
     ap.add_argument("--methods", nargs="+", default=[], choices=[_key(m, aug) for m, aug in METHODS] + ["replay_noise"],
                     help="only (re)run these methods' cells, merge them into the JSON (no extras)")
@@ -179,8 +185,8 @@ def main(argv=None) -> int:
             if (a.quick and variant == "D1") or (a.variants and variant not in a.variants):
                 continue
             for method, aug in METHODS:
-                jobs.append((task, variant, method, aug, n, a.seed, a.perception))
-        jobs.append((task, "D0", "replay_noise", False, n, a.seed, a.perception))
+                jobs.append((task, variant, method, aug, n, a.seed, a.perception, False, a.velocity_scale))
+        jobs.append((task, "D0", "replay_noise", False, n, a.seed, a.perception, False, a.velocity_scale))
     if a.methods:
         jobs = [j for j in jobs if _key(j[2], j[3]) in a.methods]
     t0 = time.perf_counter()

@@ -40,6 +40,7 @@ class SimEnvConfig:
     camera_height: int = 128  # front camera, and the datagen graph's depth noise, so the graph and this env
     depth_noise: float = 0.001  # estimate from the same clouds
     video: bool = True  # front view for the run's MP4 (160x120 unless perception renders it; only while capturing)
+    velocity_scale: float = 1.0  # fraction of the Panda's V/A/J limits for planned motions (graphs.yaml's planner)
     seed: int = 0
 
     def __post_init__(self):
@@ -48,6 +49,9 @@ class SimEnvConfig:
                                     reason="INVALID_PARAMETER")
         if self.collision not in COLLISION_SOURCES:
             raise InvalidInputError(f"collision must be one of {COLLISION_SOURCES}, got {self.collision!r}",
+                                    reason="INVALID_PARAMETER")
+        if not 0.0 < self.velocity_scale <= 1.0:
+            raise InvalidInputError(f"velocity_scale must be in (0, 1], got {self.velocity_scale}",
                                     reason="INVALID_PARAMETER")
 
 
@@ -94,7 +98,7 @@ class SimGenerationEnv:
         self.kin = PandaKinematics()
         self.cm = CollisionModel(self.kin)
         self.planner = MotionPlanner(self.kin, IKSolver(self.kin, rng=np.random.default_rng(config.seed)), self.cm,
-                                     seed=config.seed)
+                                     velocity_scale=config.velocity_scale, seed=config.seed)
         self.scene = None
         self.grasps = GraspTracker()
         self._last_gripper, self._closing = -1.0, -1

@@ -15,6 +15,7 @@ noise; the README pools seeds 1000-4000), ~6 min per seed:
 An A/B of the planned motions' speed (cells only; a separate JSON so the table stays one setting):
     .venv/bin/python bench/datagen/run.py --seed 3000 --tasks NutAssembly --variants D0 --methods skillgen \
         --velocity-scale 0.7 --out bench/results/datagen_vs07_seed3000.json
+(the same cell at the default 1.0, fresh process, for the pair: drop --velocity-scale, e.g. datagen_vs10_seed1000.json)
 
 Success cells run in-process (SimGenerationEnv: the same Algorithm 1, dataset writer and seeds as
 the datagen node) with fixed seeds; the graph-overhead cell runs the same attempts through the

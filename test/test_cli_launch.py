@@ -89,6 +89,26 @@ def test_ctrl_c_during_start_up_stops_the_graph_cleanly(ros_domain, tmp_path):
                 os.killpg(p.pid, signal.SIGKILL)
 
 
+def test_ctrl_c_while_the_launcher_starts_a_node_reaches_it_and_starts_no_more(ros_domain, tmp_path, monkeypatch):
+    """The launcher race, made deterministic: Ctrl-C lands while the first node's Popen runs (before
+    it is in the list the forward walks). That node must still get it, and the second never start."""
+    from skillgen_ros.cli import launcher
+
+    started = []
+    real_popen = subprocess.Popen
+
+    def popen_then_ctrl_c(cmd, **kw):
+        child = real_popen(cmd, **kw)
+        started.append(child)
+        os.kill(os.getpid(), signal.SIGINT)  # handled by the launcher's handler at the next bytecode
+        return child
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(launcher.subprocess, "Popen", popen_then_ctrl_c)
+    assert launcher.launch("mock_record", stop_timeout=20.0) == 0
+    assert len(started) == 1 and started[0].poll() is not None
+
+
 def test_a_node_that_ignores_ctrl_c_is_named_dumped_and_terminated():
     from skillgen_ros.cli.launcher import _escalate
 

@@ -78,11 +78,11 @@ class DatagenNode(Node):
 
     def _release_config(self) -> ReleaseConfig:
         """The `release.*` parameters as a ReleaseConfig; a bad value is INVALID_PARAMETER at start-up."""
-        v = {k: self.get_parameter(f"release.{k}").value for k in _RELEASE_PARAMS}
-        moves = bool(v.pop("moves"))
+        v = {k: self.get_parameter(f"release.{k}").value for k in _RELEASE_PARAMS}  # typed by their defaults
+        moves = v.pop("moves")
         try:
-            cfg = ReleaseConfig(**{k: type(_RELEASE_PARAMS[k])(x) for k, x in v.items()})
-        except (InvalidInputError, TypeError, ValueError) as e:
+            cfg = ReleaseConfig(**v)
+        except InvalidInputError as e:
             raise ParameterError(f"release.*: {e}") from None
         return cfg if moves else cfg.without_moves()
 

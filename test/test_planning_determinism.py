@@ -1,4 +1,4 @@
-"""Planning randomness: IK draws are per call after reseed(s); OMPL's RRT is per process."""
+"""Planning randomness: IK draws and OMPL's RRT searches are per call after reseed(s)."""
 from pathlib import Path
 import numpy as np
 import pytest
@@ -54,8 +54,8 @@ def test_ik_draws_are_per_call_after_reseed(world):
 
 
 def test_same_seed_same_plans_in_a_fresh_process(tmp_path):
-    """OMPL's RRT-Connect sampler is seeded once per process: two fresh processes with the same
-    seed plan the wall problem (which needs RRT) to identical paths."""
+    """Two fresh processes with the same seed plan the wall problem (which needs RRT) to
+    identical paths."""
     import subprocess
     import sys
 
@@ -78,6 +78,23 @@ def test_same_seed_same_plans_in_a_fresh_process(tmp_path):
             for _ in range(2)]
     assert all(o.returncode == 0 for o in outs), outs[0].stderr[-2000:]
     assert outs[0].stdout == outs[1].stdout and outs[0].stdout
+
+
+def test_rrt_plans_are_per_call_whatever_the_process_planned_before(world):
+    """The k-th plan after reseed(s) is the same path in a planner with a history of other RRT
+    searches (other seeds, other queries) as in a fresh one: attempts can be sharded."""
+    kin, start = world
+    goal = Pose([0.5, 0.25, 0.15], DOWN)
+    fresh = _planner(kin, seed=11).plan(start, goal, Mode.TRANSIT, timeout=5.0)
+    assert fresh.ok, fresh.message
+    assert len(fresh.joint_path) > 4  # retreat, approach and at least one RRT waypoint around the wall
+    busy = _planner(kin, seed=2)
+    for target in ([0.5, 0.3, 0.2], [0.45, 0.2, 0.1]):  # RRT searches around the wall first
+        assert busy.plan(start, Pose(target, DOWN), Mode.TRANSIT, timeout=5.0).ok
+    busy.reseed(11)
+    again = busy.plan(start, goal, Mode.TRANSIT, timeout=5.0)
+    assert again.ok, again.message
+    np.testing.assert_array_equal(again.joint_path, fresh.joint_path)
 
 
 def test_reseed_rejects_bad_seeds(world):

@@ -14,8 +14,8 @@ noise; the README pools seeds 1000-4000), ~6 min per seed:
         --tasks Square NutAssembly --variants D0 --methods skillgen --out bench/results/datagen_seed$s.json; done
 An A/B of the planned motions' speed (cells only; a separate JSON so the table stays one setting):
     .venv/bin/python bench/datagen/run.py --seed 3000 --tasks NutAssembly --variants D0 --methods skillgen \
-        --velocity-scale 0.7 --out bench/results/datagen_vs07_seed3000.json
-(the same cell at the default 1.0, fresh process, for the pair: drop --velocity-scale, e.g. datagen_vs10_seed1000.json)
+        --velocity-scale 1.0 --out bench/results/datagen_vs10_seed3000.json
+(the default is SimEnvConfig's 0.7; drop --velocity-scale for the other side of the pair)
 
 Success cells run in-process (SimGenerationEnv: the same Algorithm 1, dataset writer and seeds as
 the datagen node) with fixed seeds; the graph-overhead cell runs the same attempts through the
@@ -48,8 +48,9 @@ METHODS = [("skillgen", False), ("mimicgen", False), ("skillgen", True)]
 
 
 def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int, seed: int,
-             perception: str, images: bool = False, velocity_scale: float = 1.0) -> dict:
-    """One (task, variant, method) cell in this process; returns counts, CI and timings."""
+             perception: str, images: bool = False, velocity_scale: float | None = None) -> dict:
+    """One (task, variant, method) cell in this process; returns counts, CI and timings.
+    velocity_scale None: SimEnvConfig's default (the same as graphs.yaml's planner)."""
     from skillgen_ros.core.dataset.paper import paper_rate
     from skillgen_ros.core.dataset.report import wilson_interval
     from skillgen_ros.core.generation.session import RunRequest, run_generation
@@ -57,6 +58,8 @@ def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int,
     from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
     from skillgen_ros.core.tasks import get_task
 
+    if velocity_scale is None:
+        velocity_scale = SimEnvConfig.velocity_scale
     task_spec = get_task(task)
     demos = load_source_demos(expand_bag_paths([str(ROOT / "bags" / task)]), task_spec)
     env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, images=images, velocity_scale=velocity_scale))
@@ -161,9 +164,9 @@ def main(argv=None) -> int:
     ap.add_argument("--tasks", nargs="*", default=list(CELLS_FULL))
     ap.add_argument("--variants", nargs="*", default=[], help="only these variants (default: all of each task)")
     ap.add_argument("--skip-graph", action="store_true")
-    ap.add_argument("--velocity-scale", type=float, default=1.0,
+    ap.add_argument("--velocity-scale", type=float, default=None,
                     help="planned motions' fraction of the Panda's V/A/J limits in the cells (A/B of the timing; "
-                         "the extras keep graphs.yaml's 1.0)")
+                         "default and the extras: SimEnvConfig's, as graphs.yaml's planner)")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "datagen.json"))
     ap.add_argument("--methods", nargs="+", default=[], choices=[_key(m, aug) for m, aug in METHODS] + ["replay_noise"],
                     help="only (re)run these methods' cells, merge them into the JSON (no extras)")

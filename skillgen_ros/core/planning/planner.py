@@ -14,10 +14,10 @@ touch its support; transit and transfer allow no contact. The whole path is time
 The result is a complete immutable value: status, trajectory, joint path, phase timings.
 
 IK randomness (restarts) is drawn per plan() call from SeedSequence((seed, k)), k counting the
-calls since `reseed(seed)`. RRT-Connect is OMPL's, whose sampler RNG is process-wide and can be
-seeded only once (at the first plan with a seed): a fresh process with the same seed plans the
-same paths, but within one process the RRT samples depend on what was planned before. (OMPL 2's
-Python bindings expose no state-sampler allocator to inject a per-call generator.) IK and RRT are
+calls since `reseed(seed)`. RRT-Connect is OMPL's: before each search OMPL's process-wide seed
+generator restarts from SeedSequence((seed, k, 1)) and the search gets a fresh sampler and path
+simplifier, so a plan depends on (seed, k) and its inputs only, not on what the process planned
+before (a run sharded across processes plans what the unsharded run plans). IK and RRT are
 time-budgeted: a search cut by its timeout still depends on CPU speed.
 """
 from __future__ import annotations
@@ -96,14 +96,15 @@ class MotionPlanner:
         self.velocity_scale = float(velocity_scale)
         self.seed: int | None = None
         self._calls = 0
+        self._rrt_seed: int | None = None
         self.rrt = JointSpaceRRT(kin.lower, kin.upper)
         if seed is not None:
             self.reseed(seed)
 
     def reseed(self, seed: int) -> None:
         """Restart the IK randomness: the k-th plan() after this draws its IK restarts from (seed, k)
-        only. The IK solver's `rng` (shared with its other users) is replaced per call. The RRT's
-        OMPL sampler is seeded once per process (see the module docstring)."""
+        only. The IK solver's `rng` (shared with its other users) is replaced per call, and so is
+        the seed of the call's RRT searches (see the module docstring)."""
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise InvalidInputError(f"planner seed must be an int >= 0, got {seed!r}")
         self.seed, self._calls = int(seed), 0
@@ -112,8 +113,10 @@ class MotionPlanner:
         """Per-call IK streams (the IK's rng and numba's restart RNG); without a seed the IK keeps
         its own stream."""
         if self.seed is None:
+            self._rrt_seed = None
             return
         ik_seq = np.random.SeedSequence((self.seed, self._calls))
+        self._rrt_seed = int(np.random.SeedSequence((self.seed, self._calls, 1)).generate_state(1)[0])
         self._calls += 1
         self.ik.rng = np.random.default_rng(ik_seq)
         kernels.seed_rng(int(self.ik.rng.integers(2**31)))
@@ -265,7 +268,7 @@ class MotionPlanner:
         if collides(q_a[None])[0]:
             return fail(PlanStatus.START_IN_COLLISION, "the retreat ends in collision")
         remaining = max(1e-3, timeout - (time.perf_counter() - t_all))
-        res = self.rrt.plan(q_a, q_b, collides, edge_free, remaining, seed=self.seed)
+        res = self.rrt.plan(q_a, q_b, collides, edge_free, remaining, seed=self._rrt_seed)
         timings[mode.value] = time.perf_counter() - t
         if res.status is not RRTStatus.SOLVED:
             return fail(PlanStatus.PLAN_TIMEOUT, f"{mode.value}: {res.status.value} after {remaining:.2f} s")

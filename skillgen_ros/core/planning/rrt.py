@@ -22,7 +22,6 @@ import ompl.geometric as og
 import ompl.util as ou
 
 ou.setLogLevel(ou.LogLevel.LOG_WARN)
-_seeded = False  # OMPL's RNG can be seeded once per process, before its first use
 _live: "weakref.WeakSet[JointSpaceRRT]" = weakref.WeakSet()
 
 
@@ -35,10 +34,15 @@ def _release_all() -> None:
 
 
 def seed_ompl(seed: int) -> None:
-    global _seeded
-    if not _seeded:
-        ou.RNG.setSeed(max(1, int(seed)))
-        _seeded = True
+    """Restart OMPL's process-wide seed generator: every OMPL RNG made after this (a planner's
+    state sampler, a path simplifier) draws its seed from `seed` alone. OMPL logs an error when
+    sampling already started ("will not lead to deterministic sampling"); that holds for RNGs that
+    already exist, so callers make fresh ones right after (JointSpaceRRT.plan)."""
+    ou.setLogLevel(ou.LogLevel.LOG_NONE)
+    try:
+        ou.RNG.setSeed(max(1, int(seed) & 0x7FFFFFFF))
+    finally:
+        ou.setLogLevel(ou.LogLevel.LOG_WARN)
 
 
 class RRTStatus(enum.Enum):
@@ -87,12 +91,18 @@ class JointSpaceRRT:
             lambda s: not bool(self.in_collision(np.array([[s[i] for i in range(7)]]))[0]))
         self._validator = _EdgeValidator(self.si, self.edge_free)
         self.si.setMotionValidator(self._validator)
+        self.range = float(range_)
+        self._fresh_search()
+        _live.add(self)
+
+    def _fresh_search(self) -> None:
+        """A new RRT-Connect (a reused one keeps its sampler, and so its RNG, across ss.clear())
+        and path simplifier."""
         self.planner = og.RRTConnect(self.si)
-        if range_ > 0:
-            self.planner.setRange(float(range_))
+        if self.range > 0:
+            self.planner.setRange(self.range)
         self.ss.setPlanner(self.planner)
         self.simplifier = og.PathSimplifier(self.si)
-        _live.add(self)
 
     def release(self) -> None:
         for name in ("simplifier", "planner", "_validator", "si", "ss", "space"):
@@ -132,13 +142,17 @@ class JointSpaceRRT:
         if self.edge_free(start, goal):  # the trivial plan: no tree needed
             return RRTResult(RRTStatus.SOLVED, np.array([start, goal]), time.perf_counter() - t0, 0.0)
         if seed is not None:
-            seed_ompl(seed)
+            self._fresh_search()
         self.ss.clear()
         s, g = self.space.allocState(), self.space.allocState()
         for i in range(7):
             s[i] = float(start[i])
             g[i] = float(goal[i])
         self.ss.setStartAndGoalStates(s, g)
+        if seed is not None:  # set up first: a first setup draws seeds that a later one does not
+            self.ss.setup()
+            seed_ompl(seed)
+            self.simplifier = og.PathSimplifier(self.si)
         solved = self.ss.solve(float(timeout))
         plan_time = time.perf_counter() - t0
         if not solved or not self.ss.haveExactSolutionPath():

@@ -164,3 +164,35 @@ def test_point_cloud_source_and_transfer(client):
                             attached_object="cube", objects=[held, wall]))
     assert r.status == PlanToPose.Response.SUCCESS, r.message
     assert any(t.phase == "transfer" for t in r.timings)
+
+
+def test_a_seeded_request_plans_the_same_path_whatever_ran_before(ros_domain, start_node):
+    """seeded/seed/plan_index: the request is planned as the plan_index-th plan after
+    reseed(seed), so the same request gives the same trajectory after other plans (unseeded, other
+    seeds) in between. datagen seeds its plans so, so graph attempts depend on (seed, index) only."""
+    from skillgen_ros.core.geometry import Pose
+    from skillgen_ros.core.planning.ik import IKSolver
+
+    # a generous IK budget: no search cut by its timeout (that would depend on the CPU)
+    planner = start_node("planner", "--ros-args", "-p", "ik_timeout:=0.5")
+    kin = PandaKinematics()
+    down = np.array([1.0, 0.0, 0.0, 0.0])
+    start = IKSolver(kin, rng=0).solve(Pose([0.5, -0.25, 0.15], down).matrix(), seed_q=Q_HOME,
+                                       timeout=0.5).solutions[0]
+    with client_node(ros_domain, "planner_seed_test", MultiThreadedExecutor, spin=True) as (node, _):
+        cli = node.create_client(PlanToPose, "plan_to_pose")
+        assert cli.wait_for_service(timeout_sec=90.0), planner.stop()
+
+        def plan(xyz, **kw):
+            r = _call(cli, _request(xyz, start_positions=[float(v) for v in start], **kw))
+            assert r.status == PlanToPose.Response.SUCCESS, r.message
+            return convert.trajectory_from_msg(r.trajectory)[2]
+
+        wall = [_cube("wall", (0.5, 0.0, 0.25), (0.12, 0.015, 0.25))]  # the RRT goes around it
+        seeded = dict(seeded=True, seed=11, plan_index=3)
+        first = plan((0.5, 0.25, 0.15), objects=wall, **seeded)
+        plan((0.45, 0.2, 0.1))
+        plan((0.5, 0.3, 0.2), seeded=True, seed=12, plan_index=0)
+        again = plan((0.5, 0.25, 0.15), **seeded)
+        np.testing.assert_array_equal(again, first)
+        assert planner.proc.poll() is None

@@ -97,6 +97,24 @@ def test_rrt_plans_are_per_call_whatever_the_process_planned_before(world):
     np.testing.assert_array_equal(again.joint_path, fresh.joint_path)
 
 
+def test_a_plan_seed_draws_as_the_kth_plan_after_reseed_and_leaves_the_count(world):
+    """plan(seed=(s, k)) (the planner node's seeded requests) plans what the k-th plan after
+    reseed(s) plans, and the planner's own count goes on as if that plan had not happened."""
+    kin, start = world
+    goal = Pose([0.5, 0.25, 0.15], DOWN)
+    ref = _planner(kin, seed=11)
+    ref.plan(start, Pose([0.45, 0.2, 0.1], DOWN), Mode.TRANSIT, timeout=5.0)  # plan 0
+    expected = ref.plan(start, goal, Mode.TRANSIT, timeout=5.0)  # plan 1
+    other = _planner(kin, seed=4)
+    got = other.plan(start, goal, Mode.TRANSIT, timeout=5.0, seed=(11, 1))
+    assert got.ok and expected.ok
+    np.testing.assert_array_equal(got.joint_path, expected.joint_path)
+    assert other._calls == 0
+    for bad in ((11,), (11, -1), (True, 1), (1.5, 0)):
+        with pytest.raises(InvalidInputError):
+            other.plan(start, goal, Mode.TRANSIT, timeout=5.0, seed=bad)
+
+
 def test_reseed_rejects_bad_seeds(world):
     kin, _ = world
     planner = _planner(kin)

@@ -88,6 +88,9 @@ class RosGraphEnv:
         self.scene_objects = []
         self._cloud_floor = None  # perception must use a cloud stamped at or after this
         self._moved = False  # the robot moved since _cloud_floor's frames were taken
+        # plan_to_pose seeds: (reset seed, plans since the reset), as SimGenerationEnv's planner draws
+        self._plan_seed: int | None = None
+        self._plans = 0
         self._estimates: dict[str, Pose] = {}
         self._skill_object: str | None = None
         self.grasps = GraspTracker()
@@ -169,6 +172,7 @@ class RosGraphEnv:
         if not resp.success:
             raise SkillGenError(f"reset_scene: {resp.message}", reason=resp.reason_code or "RESET_FAILED")
         self.task = task
+        self._plan_seed, self._plans = int(seed), 0
         self.scene_objects = list(resp.objects)
         self._cloud_floor = resp.joint_state.header.stamp  # the reset published frames of this state
         self._moved = False
@@ -308,6 +312,9 @@ class RosGraphEnv:
         req.start_positions = [float(v) for v in self.current_q()]
         req.objects = self._scene_for_planner()
         req.manipulated_object = self._skill_object or ""
+        if self._plan_seed is not None:
+            req.seeded, req.seed, req.plan_index = True, self._plan_seed, self._plans
+        self._plans += 1
         resp = self._call(self.plan_cli, req, self.t["plan"] + self.t["execute"], "plan_to_pose", "PLAN_FAILED",
                           idempotent=False)  # it moves the robot
         status = resp.status_name or str(resp.status)

@@ -237,8 +237,10 @@ class PlannerNode(Node):
             others = {k: b for k, b in obstacles.items() if k != released}
             c = obstacles[released].pose[:3, 3]
             released_support = _containing(others, c) or _support(others, c)
+        seed = (int(req.seed), int(req.plan_index)) if req.seeded else None
         result = self.planner.plan(q0, target, mode, attached, manipulated, released,
-                                   start_support, goal_support, timeout, released_support=released_support)
+                                   start_support, goal_support, timeout, released_support=released_support,
+                                   seed=seed)
         return result.status, result.message, result
 
     # -- output ------------------------------------------------------------------------------

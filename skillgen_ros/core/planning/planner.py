@@ -109,15 +109,18 @@ class MotionPlanner:
             raise InvalidInputError(f"planner seed must be an int >= 0, got {seed!r}")
         self.seed, self._calls = int(seed), 0
 
-    def _reseed_ik_for_call(self) -> None:
-        """Per-call IK streams (the IK's rng and numba's restart RNG); without a seed the IK keeps
-        its own stream."""
-        if self.seed is None:
-            self._rrt_seed = None
-            return
-        ik_seq = np.random.SeedSequence((self.seed, self._calls))
-        self._rrt_seed = int(np.random.SeedSequence((self.seed, self._calls, 1)).generate_state(1)[0])
-        self._calls += 1
+    def _reseed_ik_for_call(self, seed_k: tuple[int, int] | None = None) -> None:
+        """Per-call IK streams (the IK's rng and numba's restart RNG) and RRT seed, from `seed_k` =
+        (seed, k) if given (leaving the planner's own count alone), else from (self.seed, next k);
+        without either the IK keeps its own stream and the RRT is not reseeded."""
+        if seed_k is None:
+            if self.seed is None:
+                self._rrt_seed = None
+                return
+            seed_k = (self.seed, self._calls)
+            self._calls += 1
+        ik_seq = np.random.SeedSequence(seed_k)
+        self._rrt_seed = int(np.random.SeedSequence((*seed_k, 1)).generate_state(1)[0])
         self.ik.rng = np.random.default_rng(ik_seq)
         kernels.seed_rng(int(self.ik.rng.integers(2**31)))
 
@@ -125,9 +128,11 @@ class MotionPlanner:
              attached: AttachedObject | None = None, manipulated: str | None = None,
              released: str | None = None, start_support: str | None = "table", goal_support: str | None = "table",
              timeout: float = 5.0, retreat: bool = True, approach: bool = True,
-             released_support: str | None = None) -> PlanResult:
+             released_support: str | None = None, seed: tuple[int, int] | None = None) -> PlanResult:
         """Plan from `start_q` to the EE pose `target`. See the module docstring.
 
+        seed=(s, k): draw as the k-th plan after reseed(s) would, whatever this planner ran before
+        (the planner node serving datagen's attempts); the planner's own count does not advance.
         manipulated: object the hand may touch on the approach (transit: about to be grasped);
         released: object the hand may touch on the retreat (just put down; default manipulated).
         released_support: what `released` was put on (a peg, a bin); the hand may touch it on the retreat.
@@ -136,7 +141,10 @@ class MotionPlanner:
         """
         t_all = time.perf_counter()
         timings: dict[str, float] = {}
-        self._reseed_ik_for_call()  # every call takes its index, whatever its outcome
+        if seed is not None and (len(seed) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, np.integer))
+                                                        or v < 0 for v in seed)):
+            raise InvalidInputError(f"plan seed must be (seed, index), two ints >= 0, got {seed!r}")
+        self._reseed_ik_for_call(None if seed is None else (int(seed[0]), int(seed[1])))  # every call takes its index
         try:
             q0 = self.kin._check(start_q)
             target = validate_pose(target.position, target.quaternion, "target")

@@ -145,19 +145,25 @@ class RosGraphEnv:
     # -- plumbing
     def _call(self, client, request, timeout: float, what: str, reason: str, idempotent: bool = True):
         """Call a service with a timeout. The first response on a fresh connection can be lost (the
-        server may not have matched our response reader yet), so idempotent requests are resent
-        once after a short wait."""
+        server may not have matched our response reader yet), so requests that are safe to repeat
+        are resent every few seconds until answered (answered.first_answer); one that moves the
+        robot is sent once."""
         if not client.wait_for_service(timeout_sec=min(timeout, 5.0)):
             raise GraphCallError(f"{what}: service {client.srv_name} is not available", reason=reason)
-        waits = [min(5.0, timeout / 2), timeout - min(5.0, timeout / 2)] if idempotent else [timeout]
-        for wait in waits:
-            fut = client.call_async(request)
-            if wait_future(fut, wait):
-                if fut.exception() is not None:
-                    raise GraphCallError(f"{what}: {fut.exception()}", reason=reason)
-                return fut.result()
-            client.remove_pending_request(fut)
-        raise GraphCallError(f"{what}: no answer from {client.srv_name} within {timeout:.1f} s", reason=reason)
+        try:
+            if idempotent:
+                res = first_answer(lambda: client.call_async(request), wait_future, timeout,
+                                   each=min(5.0, timeout / 2))
+            else:
+                fut = client.call_async(request)
+                res = fut.result() if wait_future(fut, timeout) else None
+                if res is None:
+                    client.remove_pending_request(fut)
+        except Exception as e:  # noqa: BLE001 -- the future's exception, e.g. the service's error
+            raise GraphCallError(f"{what}: {e}", reason=reason) from e
+        if res is None:
+            raise GraphCallError(f"{what}: no answer from {client.srv_name} within {timeout:.1f} s", reason=reason)
+        return res
 
     def wait_for_state(self, timeout: float, after: int = -1) -> bool:
         """Take the driver's newest joint_states (the first after the `after`-th, if given)."""

@@ -84,6 +84,9 @@ def run_nodes(factories: list[Callable[[], "rclpy.node.Node"]], args=None, threa
             ex.add_node(n)
         try:
             ex.spin()
+        except Exception:  # noqa: BLE001 - a callback's error; after Ctrl-C it is the shut-down context
+            if not (stop.is_set() or not rclpy.ok()):  # (a timer publishing as rclpy shut it down:
+                raise  # "publisher's context is invalid"), which is a clean stop, not a failure
         finally:
             ex.shutdown()
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -85,7 +85,7 @@ def run_nodes(factories: list[Callable[[], "rclpy.node.Node"]], args=None, threa
         try:
             ex.spin()
         except Exception:  # noqa: BLE001 - a callback's error; after Ctrl-C it is the shut-down context
-            if not (stop.is_set() or not rclpy.ok()):  # (a timer publishing as rclpy shut it down:
+            if not stop.is_set() and rclpy.ok():  # (a timer publishing as rclpy shut it down:
                 raise  # "publisher's context is invalid"), which is a clean stop, not a failure
         finally:
             ex.shutdown()

@@ -82,6 +82,11 @@ def _shift_z(T: np.ndarray, d: float) -> np.ndarray:
     return T @ S
 
 
+def _seed_like(v) -> bool:
+    """An int >= 0 (numpy ints too; not a bool): what reseed() and plan(seed=...) accept."""
+    return not isinstance(v, bool) and isinstance(v, (int, np.integer)) and v >= 0
+
+
 class MotionPlanner:
     def __init__(self, kin: PandaKinematics, ik: IKSolver, collision: CollisionModel,
                  retreat_distance: float = 0.05, approach_distance: float = 0.05,
@@ -105,7 +110,7 @@ class MotionPlanner:
         """Restart the IK randomness: the k-th plan() after this draws its IK restarts from (seed, k)
         only. The IK solver's `rng` (shared with its other users) is replaced per call, and so is
         the seed of the call's RRT searches (see the module docstring)."""
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        if not _seed_like(seed):
             raise InvalidInputError(f"planner seed must be an int >= 0, got {seed!r}")
         self.seed, self._calls = int(seed), 0
 
@@ -141,8 +146,7 @@ class MotionPlanner:
         """
         t_all = time.perf_counter()
         timings: dict[str, float] = {}
-        if seed is not None and (len(seed) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, np.integer))
-                                                        or v < 0 for v in seed)):
+        if seed is not None and (len(seed) != 2 or not all(map(_seed_like, seed))):
             raise InvalidInputError(f"plan seed must be (seed, index), two ints >= 0, got {seed!r}")
         self._reseed_ik_for_call(None if seed is None else (int(seed[0]), int(seed[1])))  # every call takes its index
         try:

@@ -92,17 +92,16 @@ class JointSpaceRRT:
         self._validator = _EdgeValidator(self.si, self.edge_free)
         self.si.setMotionValidator(self._validator)
         self.range = float(range_)
-        self._fresh_search()
+        self._new_planner()
+        self.simplifier = og.PathSimplifier(self.si)
         _live.add(self)
 
-    def _fresh_search(self) -> None:
-        """A new RRT-Connect (a reused one keeps its sampler, and so its RNG, across ss.clear())
-        and path simplifier."""
+    def _new_planner(self) -> None:
+        """A new RRT-Connect: a reused one keeps its sampler, and so its RNG, across ss.clear()."""
         self.planner = og.RRTConnect(self.si)
         if self.range > 0:
             self.planner.setRange(self.range)
         self.ss.setPlanner(self.planner)
-        self.simplifier = og.PathSimplifier(self.si)
 
     def release(self) -> None:
         for name in ("simplifier", "planner", "_validator", "si", "ss", "space"):
@@ -142,7 +141,7 @@ class JointSpaceRRT:
         if self.edge_free(start, goal):  # the trivial plan: no tree needed
             return RRTResult(RRTStatus.SOLVED, np.array([start, goal]), time.perf_counter() - t0, 0.0)
         if seed is not None:
-            self._fresh_search()
+            self._new_planner()
         self.ss.clear()
         s, g = self.space.allocState(), self.space.allocState()
         for i in range(7):

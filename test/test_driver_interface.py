@@ -18,7 +18,7 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
 from conftest import REPO, wait_for
-from geometry_msgs.msg import Point, Pose as PoseMsg, PoseStamped, Quaternion
+from geometry_msgs.msg import Point, Pose as PoseMsg, PoseStamped, Quaternion, WrenchStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
 from std_msgs.msg import String
@@ -31,6 +31,7 @@ from skillgen_ros.nodes.convert import trajectory_to_msg
 EXPECTED_TOPICS = {
     "/joint_states": "sensor_msgs/msg/JointState",
     "/ee_pose": "geometry_msgs/msg/PoseStamped",
+    "/ee_wrench": "geometry_msgs/msg/WrenchStamped",
     "/gripper_state": "skillgen_interfaces/msg/GripperState",
     "/sim/ground_truth/object_poses": "skillgen_interfaces/msg/ObjectPoseArray",
     "/osc_target": "skillgen_interfaces/msg/OscTarget",
@@ -60,7 +61,8 @@ class Client:
         self.exe.add_node(self.node)
         self.last: dict = {}
         self.errors: list[str] = []
-        for topic, typ in (("ee_pose", PoseStamped), ("joint_states", JointState), ("/clock", Clock)):
+        for topic, typ in (("ee_pose", PoseStamped), ("joint_states", JointState), ("/clock", Clock),
+                           ("ee_wrench", WrenchStamped)):
             self.node.create_subscription(typ, topic, lambda m, t=topic: self.last.__setitem__(t, m), 10)
         self.node.create_subscription(ObjectPoseArray, "sim/ground_truth/object_poses",
                                       lambda m: self.last.__setitem__("gt", m), LATCHED)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import pytest
 
 from skillgen_ros import rosenv  # noqa: F401
 
@@ -12,7 +13,7 @@ from skillgen_interfaces.msg import OscTarget
 from skillgen_interfaces.srv import TaskSuccess
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.tasks import get_task, scripted
-from skillgen_ros.nodes.convert import pose_from_msg, pose_to_msg
+from skillgen_ros.nodes.convert import pose_from_msg, pose_to_msg, wrench_from_msg
 from test_driver_interface import Client, client  # noqa: F401  (fixture)
 
 # parameters come from the node's defaults (same values as params/sim_driver.yaml) plus -p overrides:
@@ -32,6 +33,7 @@ class RosEnv:
         self.scene = type("Scene", (), {"task": task, "objects": spec.objects_for(variant)})()
         assert c.spin_until(lambda: "gt" in c.last and "ee_pose" in c.last)
         self.n_ee = 0
+        self.wrenches: list = []  # (gripper command, ee_wrench, EE z) per step
         c.node.create_subscription(type(c.last["ee_pose"]), "ee_pose", self._count, 10)
 
     def _count(self, _m):
@@ -46,9 +48,12 @@ class RosEnv:
     def step(self, pose: Pose, gripper: float) -> None:
         n = self.n_ee
         self.c.pub.publish(OscTarget(pose=pose_to_msg(pose), gripper=float(gripper)))
-        # the period's ee_pose and its ground truth (same stamp) must both have arrived
+        # the period's ee_pose, its ground truth and its ee_wrench (same stamp) must all have arrived
         assert self.c.spin_until(lambda: self.n_ee > n and self.c.last["gt"].header.stamp
-                                 == self.c.last["ee_pose"].header.stamp, 10.0)
+                                 == self.c.last["ee_pose"].header.stamp == self.c.last["ee_wrench"].header.stamp,
+                                 10.0)
+        self.wrenches.append((float(gripper), wrench_from_msg(self.c.last["ee_wrench"]),
+                              pose_from_msg(self.c.last["ee_pose"].pose).position[2]))
 
     def task_success(self) -> bool:
         return self.c.call(self.c.success_cli, TaskSuccess.Request()).success
@@ -61,6 +66,14 @@ def test_scripted_solution_over_ros_lockstep(start_node, client):  # noqa: F811
     assert not env.task_success()
     result = scripted.solve(env)
     assert result.success
+    # ee_wrench: nothing on the hand while it moves open through free space; carrying the object
+    # clear of the table, the hand holds up its weight (a downward force)
+    free = [w for g, w, z in env.wrenches if g < 0 and z > 0.2]
+    carrying = [w for g, w, z in env.wrenches if g > 0 and z > 0.15]
+    assert free and carrying
+    assert max(np.linalg.norm(w[:3]) for w in free) < 1e-6
+    mass = next(o.mass for o in get_task("PickPlace").objects_for("D0") if o.mass > 0)
+    assert np.median([w[2] for w in carrying]) == pytest.approx(-9.81 * mass, rel=0.5)
 
 
 def test_lockstep_timeout_and_realtime_clock(start_node, client):  # noqa: F811

@@ -132,3 +132,65 @@ def test_a_hand_pushed_off_its_last_target_moves_on_along_the_push():
     near[:3, 3] += [0.005, 0.0, 0.0]  # within the tracking error: nothing to do
     assert drive(release_targets(near, 0.078, reference=reference), lambda T, w: 0.078) == []
     assert drive(release_targets(pushed, 0.078, ReleaseConfig(follow=0.0), reference), lambda T, w: 0.078) == []
+
+
+def touching(normal, clear_after):
+    """A finger on the object: the hand feels 3 N along `normal` (world) until it has moved
+    `clear_after` m along it from HOLD."""
+    normal = np.asarray(normal, float) / np.linalg.norm(normal)
+
+    def wrench(target):
+        w = np.zeros(6)
+        if (target[:3, 3] - HOLD[:3, 3]) @ normal < clear_after - 1e-9:
+            w[:3] = 3.0 * normal + [0.0, 0.0, -0.5]  # the push and some of the object's weight
+        return w
+    return wrench
+
+
+def drive_wrench(gen, wrench):
+    targets = []
+    try:
+        target = next(gen)
+        while True:
+            targets.append(target)
+            target = gen.send(Feedback(0.078, target[:3, 3], wrench(target)))
+    except StopIteration:
+        return targets
+
+
+def test_a_finger_still_on_the_object_clears_along_the_sideways_force():
+    push = touching([1.0, -1.0, 0.0], clear_after=0.010)
+    cfg = ReleaseConfig()
+    targets = drive_wrench(release_targets(HOLD, 0.078, cfg, HOLD, push(HOLD)), push)
+    steps = (targets[0][:3, 3] - HOLD[:3, 3], targets[2][:3, 3] - HOLD[:3, 3])
+    np.testing.assert_allclose(steps[0], cfg.clear_step * np.array([1, -1, 0]) / np.sqrt(2), atol=1e-12)
+    np.testing.assert_allclose(steps[1], 3 * cfg.clear_step * np.array([1, -1, 0]) / np.sqrt(2), atol=1e-12)
+    # three steps reach 12 mm (force gone at 10 mm), then the margin, held for 3 periods
+    assert len(targets) == 3 + 3
+    for T in targets[3:]:
+        np.testing.assert_allclose(np.linalg.norm(T[:3, 3] - HOLD[:3, 3]), 3 * cfg.clear_step + cfg.clear_margin)
+    for T in targets:
+        np.testing.assert_array_equal(T[:3, :3], HOLD[:3, :3])  # the hand only translates, level
+        assert T[2, 3] == HOLD[2, 3]
+
+
+def test_clear_stops_at_clear_max_and_ignores_what_it_cannot_steer_by():
+    stuck = touching([0.0, 1.0, 0.0], clear_after=1.0)  # never comes free
+    cfg = ReleaseConfig(clear_max=0.02)
+    targets = drive_wrench(release_targets(HOLD, 0.078, cfg, HOLD, stuck(HOLD)), stuck)
+    assert max(np.linalg.norm(T[:3, 3] - HOLD[:3, 3]) for T in targets) == pytest.approx(0.02 + cfg.clear_margin)
+    free = lambda T: np.zeros(6)  # noqa: E731
+    assert drive_wrench(release_targets(HOLD, 0.078, cfg, HOLD, free(HOLD)), free) == []
+    down = lambda T: np.array([0.01, 0.0, -0.5, 0.0, 0.0, 0.0])  # noqa: E731 - weight on a finger, no sideways push
+    assert drive_wrench(release_targets(HOLD, 0.078, cfg, HOLD, down(HOLD)), down) == []
+    assert drive_wrench(release_targets(HOLD, 0.078, cfg, HOLD, None), lambda T: None) == []  # no wrench reported
+    assert drive_wrench(release_targets(HOLD, 0.078, cfg.without_moves(), HOLD, stuck(HOLD)), stuck) == []
+    assert drive_wrench(release_targets(HOLD, 0.078, cfg, None, stuck(HOLD)), stuck) == []  # no reference
+
+
+def test_bad_clear_settings_are_invalid_parameters():
+    from skillgen_ros.core.errors import InvalidInputError
+    for bad in ({"clear_step": 0.0}, {"clear_max": -0.01}, {"contact_force": float("nan")}):
+        with pytest.raises(InvalidInputError) as e:
+            ReleaseConfig(**bad)
+        assert e.value.reason == "INVALID_PARAMETER"

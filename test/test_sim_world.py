@@ -157,6 +157,21 @@ def test_contact_queries(world):
     assert any(c.body == "square_peg" for c in world.robot_contacts())
 
 
+def test_the_hand_feels_what_it_presses_on(world):
+    """ee_wrench: zero in free space; pressing down on the peg top, an upward force near the
+    OSC's downward push and little torque about the EE (the contact is below it)."""
+    world.reset("Square", "D0", 0)
+    np.testing.assert_array_equal(world.ee_wrench(), np.zeros(6))
+    peg = world.object_poses()["square_peg"]
+    top = world.ee_pose()
+    for z in (0.2, 0.07):
+        for _ in range(25):
+            world.step(Pose([*peg.position[:2], z], top.quaternion), 1.0)
+    w = world.ee_wrench()
+    assert w[2] > 5.0 and w[2] > 2 * np.linalg.norm(w[:2])  # the peg pushes the hand up
+    assert np.linalg.norm(w[3:]) < 0.1 * w[2]  # the contact is nearly on the EE axis
+
+
 def test_scripted_actions_replay_open_loop_to_success():
     """The recorded OSC stream of a scripted solution, replayed open-loop on a fresh world, succeeds."""
     w = SimWorld()

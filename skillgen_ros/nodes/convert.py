@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 from builtin_interfaces.msg import Duration
-from geometry_msgs.msg import Point, Pose as PoseMsg, PoseStamped, Quaternion
+from geometry_msgs.msg import Point, Pose as PoseMsg, PoseStamped, Quaternion, Vector3, Wrench, WrenchStamped
 from sensor_msgs.msg import JointState, PointCloud2, PointField
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -34,6 +34,17 @@ def pose_arrays_from_msg(m: PoseMsg) -> tuple[np.ndarray, np.ndarray]:
 
 def pose_stamped(p: Pose, frame_id: str, stamp) -> PoseStamped:
     return PoseStamped(header=Header(frame_id=frame_id, stamp=stamp), pose=pose_to_msg(p))
+
+
+def wrench_stamped(w: np.ndarray, frame_id: str, stamp) -> WrenchStamped:
+    """(6,) force, torque -> WrenchStamped."""
+    f, t = (Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2])) for v in (w[:3], w[3:]))
+    return WrenchStamped(header=Header(frame_id=frame_id, stamp=stamp), wrench=Wrench(force=f, torque=t))
+
+
+def wrench_from_msg(m: WrenchStamped) -> np.ndarray:
+    f, t = m.wrench.force, m.wrench.torque
+    return np.array([f.x, f.y, f.z, t.x, t.y, t.z], float)
 
 
 def joint_state(names, positions, velocities=None, efforts=None, frame_id: str = "", stamp=None) -> JointState:

@@ -35,7 +35,7 @@ from skillgen_ros.nodes.graph_env import RosGraphEnv
 from skillgen_ros.nodes.runtime import run_node
 
 TIMEOUTS = {"reset": 30.0, "perception": 20.0, "plan": 10.0, "execute": 60.0, "skill": 120.0, "state": 10.0}
-# release.* parameters: `moves` switches unjam/follow off; the rest are ReleaseConfig's fields
+# release.* parameters: `moves` switches unjam/follow/clear off; the rest are ReleaseConfig's fields
 _RELEASE_PARAMS = {"moves": True, **{f: getattr(ReleaseConfig(), f) for f in ReleaseConfig.__dataclass_fields__}}
 
 

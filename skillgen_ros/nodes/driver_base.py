@@ -110,6 +110,7 @@ class DriverNode(Node):
         self.pub_js = pub(convert.JointState, "joint_states", RELIABLE)
         self.pub_ee = pub(PoseStamped, "ee_pose", RELIABLE)
         self.pub_grip = pub(GripperState, "gripper_state", RELIABLE)
+        self.pub_wrench = pub(convert.WrenchStamped, "ee_wrench", RELIABLE)
         self.pub_gt = pub(ObjectPoseArray, "sim/ground_truth/object_poses", LATCHED)
         self.pub_err = pub(String, "driver/errors", RELIABLE)
         self.pub_clock = pub(Clock, "/clock", RELIABLE) if self.mode == "lockstep" else None
@@ -226,6 +227,10 @@ class DriverNode(Node):
 
         if self.pub_clock is not None and wanted(self.pub_clock):
             self.pub_clock.publish(Clock(clock=stamp))
+        # the external wrench on the hand (a Panda's O_F_ext_hat_K); before joint_states, which
+        # clients wait on, so the period's wrench is there when they look
+        if wanted(self.pub_wrench):
+            self.pub_wrench.publish(convert.wrench_stamped(w.ee_wrench(), self.frame, stamp))
         if wanted(self.pub_js):
             q = np.concatenate([w.joint_positions(), w.finger_positions()])
             qd = np.concatenate([w.joint_velocities(), np.zeros(2)])

@@ -6,10 +6,9 @@ reset -> `reset_scene`, estimate_poses -> `estimate_poses`, plan_and_execute -> 
 action, task_success -> `task_success`. Before estimating poses in a state the robot has moved to,
 it asks the driver for fresh camera frames (`capture_cameras`) and has perception use a cloud no
 older than them, as SimGenerationEnv renders at that moment; a reset's own frames serve the first
-estimate. While filming an attempt for the MP4 it raises the driver's `camera_hz` (a parameter
-set on `driver_node`), so outside those attempts the driver renders nothing periodically.
-Observations come from `joint_states` alone (arm and
-finger joints; the EE pose is FK through pinocchio, within 1e-8 m of the driver's `ee_pose`),
+estimate. Filming an attempt for the MP4 is graph_video.AttemptVideo's job.
+Observations come from `joint_states` (arm and finger joints; the EE pose is FK through
+pinocchio, within 1e-8 m of the driver's `ee_pose`) and the same period's `ee_wrench`,
 read on demand (nodes/latest.py) so that the driver's hundreds of periods a second in lockstep do
 not wake this node; object poses in observations are the latest estimates (never ground truth).
 Motion-planner steps are recorded from the planned trajectory sampled at the control rate
@@ -26,10 +25,8 @@ import numpy as np
 from rclpy.action import ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from sensor_msgs.msg import Image, JointState
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from skillgen_interfaces.action import ReplaySkill
@@ -43,6 +40,7 @@ from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
 from skillgen_ros.nodes import convert
+from skillgen_ros.nodes.graph_video import AttemptVideo
 from skillgen_ros.nodes.latest import LatestMessage, wait_future
 
 
@@ -69,9 +67,7 @@ class RosGraphEnv:
         self.replay_ac = ActionClient(node, ReplaySkill, "replay_skill", callback_group=group)
         self.capture_cli = node.create_client(CaptureCameras, "capture_cameras", callback_group=group)
         self.load_demos_cli = node.create_client(LoadDemos, "skill_replay/load_demos", callback_group=group)
-        self._driver_params = AsyncParameterClient(node, driver_node, callback_group=group) if driver_node else None
-        self._video_hz = float(video_camera_hz)
-        self._camera_hz_before: float | None = None
+        self.video = AttemptVideo(node, driver_node, video_camera_hz, group)
         self._lock = threading.RLock()
         self.osc_pub = node.create_publisher(OscTarget, "osc_target", 10)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -79,9 +75,7 @@ class RosGraphEnv:
         self._q = np.zeros(7)
         self._fingers = np.zeros(2)
         self._joints = LatestMessage(node, JointState, "joint_states")
-        node.create_subscription(Image, "camera/front/image", self._on_image, qos_profile_sensor_data,
-                                 callback_group=group)
-        self._frames: list | None = None
+        self._wrench = LatestMessage(node, convert.WrenchStamped, "ee_wrench")
         self.kin = PandaKinematics()
         self.task = ""
         self._task_sent = ""
@@ -108,39 +102,12 @@ class RosGraphEnv:
                 self._fingers = np.array([pos[j] for j in FINGER_JOINTS])
         return True
 
-    def _on_image(self, m: Image):
-        frames = self._frames
-        if frames is not None and m.encoding in ("rgb8", "bgr8") and len(frames) < 2000:
-            img = np.frombuffer(bytes(m.data), np.uint8).reshape(m.height, m.width, 3)
-            frames.append(img[..., ::-1] if m.encoding == "bgr8" else img)
-
     # -- video of a few attempts (session.run_generation calls these)
     def start_capture(self) -> None:
-        self._frames = []
-        self._camera_hz_before = self._set_camera_hz(self._video_hz)
+        self.video.start()
 
     def stop_capture(self) -> list:
-        frames, self._frames = self._frames or [], None
-        if self._camera_hz_before is not None:
-            self._set_camera_hz(self._camera_hz_before)
-            self._camera_hz_before = None
-        return frames
-
-    def _set_camera_hz(self, hz: float) -> float | None:
-        """Set the driver's camera_hz; returns the value it had, or None if that failed (the MP4 is
-        an aid: a driver without the parameter gives a video of whatever frames come)."""
-        cli = self._driver_params
-        if cli is None or not cli.wait_for_services(timeout_sec=2.0):
-            return None
-        got = cli.get_parameters(["camera_hz"])
-        if not wait_future(got, 2.0) or got.result() is None or not got.result().values:
-            return None
-        before = got.result().values[0].double_value
-        done = cli.set_parameters([Parameter("camera_hz", value=float(hz))])
-        if not wait_future(done, 2.0) or done.result() is None or not all(r.successful for r in done.result().results):
-            self.node.get_logger().warning(f"could not set {cli.remote_node_name}.camera_hz for the video")
-            return None
-        return before
+        return self.video.stop()
 
     # -- plumbing
     def _call(self, client, request, timeout: float, what: str, reason: str, idempotent: bool = True):
@@ -191,8 +158,19 @@ class RosGraphEnv:
             raise GraphCallError("no joint_states from the driver after reset", reason="TIMEOUT")
         return resp
 
+    def _take_wrench(self, joints) -> np.ndarray | None:
+        """The driver's ee_wrench of the joint_states' period (None if it publishes none)."""
+        if joints is None or self._wrench.snapshot()[1] == 0:
+            return None
+        t = joints.header.stamp
+        m = self._wrench.wait_for(lambda w: w is not None and (w.header.stamp.sec, w.header.stamp.nanosec)
+                                  >= (t.sec, t.nanosec), 0.1)
+        return None if m is None else convert.wrench_from_msg(m)
+
     def observe(self) -> Observation:
-        self._take_joints(self._joints.latest())
+        joints = self._joints.latest()
+        self._take_joints(joints)
+        wrench = self._take_wrench(joints)
         with self._lock:
             q, f = self._q.copy(), self._fingers.copy()
         ee_pose = Pose.from_matrix(self.kin.fk(q))
@@ -200,7 +178,7 @@ class RosGraphEnv:
         held = self.grasps.holding()
         if held in objects:  # a held object moves with the hand (rigid attachment)
             objects[held] = self.grasps.pose_now(held, ee_pose.matrix())
-        return Observation(ee_pose=ee_pose, gripper=f, joint_positions=q, object_poses=objects)
+        return Observation(ee_pose=ee_pose, gripper=f, joint_positions=q, object_poses=objects, ee_wrench=wrench)
 
     def load_demos(self, task: str) -> None:
         """Have skill_replay load the run's source demos before the first attempt (raises with its

@@ -74,7 +74,7 @@ class GenerationConfig:
     initiation_candidates: int = 6
     # before a planned motion, let the object just released come free of the hand (release.py):
     # hold while the fingers open (settle), unjam fingers stopped short of open, follow a push by
-    # an open finger. ReleaseConfig().without_moves() = only the settle.
+    # an open finger, clear a finger still touching. ReleaseConfig().without_moves() = only the settle.
     release: ReleaseConfig = ReleaseConfig()
 
     def __post_init__(self):
@@ -210,14 +210,15 @@ class _Attempt:
         if self.gripper > 0:
             return
         moves = release_targets(self.obs.ee_matrix(), float(np.sum(self.obs.gripper)), self.cfg.release,
-                                self.last_target)
+                                self.last_target, self.obs.ee_wrench)
         t = time.perf_counter()
         try:
             target = next(moves, None)
             while target is not None:
                 self._step(target, self.gripper, 0.0, label)
                 try:
-                    target = moves.send(Feedback(float(np.sum(self.obs.gripper)), self.obs.ee_matrix()[:3, 3]))
+                    target = moves.send(Feedback(float(np.sum(self.obs.gripper)), self.obs.ee_matrix()[:3, 3],
+                                                 self.obs.ee_wrench))
                 except StopIteration:
                     target = None
         finally:

@@ -36,6 +36,9 @@ class Observation:
     joint_positions: np.ndarray  # (7,)
     object_poses: Mapping[str, np.ndarray]  # id -> (7,) (Poses accepted)
     images: Mapping[str, np.ndarray] = field(default_factory=dict)
+    # (6,) external force (N) / torque (N m, about the EE) on the hand, world frame, as the driver
+    # measures it; None when it reports none. Steers the release (release.py), not recorded.
+    ee_wrench: np.ndarray | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "ee_pose", _pose7(self.ee_pose, "observation ee_pose"))
@@ -43,6 +46,11 @@ class Observation:
         object.__setattr__(self, "joint_positions", np.asarray(self.joint_positions, float).reshape(-1))
         object.__setattr__(self, "object_poses",
                            {k: _pose7(v, f"observation pose of {k}") for k, v in dict(self.object_poses).items()})
+        if self.ee_wrench is not None:
+            w = np.asarray(self.ee_wrench, float).reshape(-1)
+            if w.shape != (6,):
+                raise InvalidInputError(f"observation ee_wrench: expected 6 values, got {w.shape}")
+            object.__setattr__(self, "ee_wrench", w)
 
     def ee_matrix(self) -> np.ndarray:
         return Pose.from_array(self.ee_pose).matrix()

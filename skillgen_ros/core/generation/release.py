@@ -17,8 +17,16 @@ The compliant OSC then lets the hand drift away from its last target, and the re
 the object by friction. If the hand has drifted more than 8 mm, it moves on 1.5 cm further along
 the drift, which unloads the finger (follow).
 
-The moves need only the measured gripper width and EE position, so the same code runs
-in-process and over the graph. `release_targets` is a generator: it yields EE targets and is
+An open finger can also stay against the object with too little force to make the hand drift:
+the nut's handle leaning on a finger as the ring sticks on the peg. Friction from that sideways
+push lifts the nut on the retreat. So while the driver reports a sideways (horizontal) force on
+the hand, the hand steps along it, away from what pushes, up to 3 cm, and a little past the point
+where the force vanishes (clear). A force straight down (the object's weight on a finger) gives
+no direction and is left to the retreat.
+
+The moves need only the measured gripper width, EE position and, for the clear, the external
+wrench the driver reports (a Panda's O_F_ext_hat_K), so the same code runs in-process and over
+the graph. `release_targets` is a generator: it yields EE targets and is
 sent a `Feedback` after each.
 """
 from __future__ import annotations
@@ -36,6 +44,7 @@ OPEN_WIDTH = 0.075  # m between the fingers that counts as open: the Panda hand 
 class Feedback(NamedTuple):
     width: float  # m between the fingers
     position: np.ndarray  # EE position (m, world)
+    wrench: np.ndarray | None = None  # (6,) external force/torque on the hand (world); None: unknown
 
 
 @dataclass(frozen=True)
@@ -49,9 +58,13 @@ class ReleaseConfig:
     drift_max: float = 0.008  # m off the last target beyond which an open finger is pressing
     follow: float = 0.015  # m to move on along the drift (0 = no follow)
     follow_steps: int = 6
+    contact_force: float = 0.05  # N of sideways force on the hand that means a finger still touches
+    clear_step: float = 0.004  # m per period along that force
+    clear_max: float = 0.03  # m of clearing at most (0 = no clear)
+    clear_margin: float = 0.004  # m further once the force is gone
 
     def __post_init__(self):
-        positive = ("stall_eps", "unjam_step", "progress")
+        positive = ("stall_eps", "unjam_step", "progress", "clear_step")
         bad = [f"{f}={getattr(self, f)}" for f in self.__dataclass_fields__
                if not np.isfinite(getattr(self, f)) or getattr(self, f) < 0 or (f in positive and getattr(self, f) == 0)]
         if bad:
@@ -59,8 +72,8 @@ class ReleaseConfig:
                                     f"{', '.join(positive)} > 0", reason="INVALID_PARAMETER")
 
     def without_moves(self) -> "ReleaseConfig":
-        """Only the settle: no unjam, no follow (MimicGen-style baselines, or `release.moves: false`)."""
-        return replace(self, unjam_max=0.0, follow=0.0)
+        """Only the settle: no unjam, follow or clear (MimicGen-style baselines, or `release.moves: false`)."""
+        return replace(self, unjam_max=0.0, follow=0.0, clear_max=0.0)
 
 
 Releaser = Generator[np.ndarray, Feedback, None]
@@ -98,24 +111,56 @@ def _unjam(hold: np.ndarray, fb: Feedback, cfg: ReleaseConfig) -> Generator[np.n
     return fb
 
 
+def _sideways(fb: Feedback) -> np.ndarray:
+    """The horizontal part of the external force on the hand (zero when it is not reported)."""
+    if fb.wrench is None:
+        return np.zeros(3)
+    return np.array([fb.wrench[0], fb.wrench[1], 0.0])
+
+
+def _clear(start: np.ndarray, fb: Feedback, cfg: ReleaseConfig) -> Generator[np.ndarray, Feedback, Feedback]:
+    """Step along the sideways force until it is gone (or clear_max), then clear_margin further."""
+    target, moved = start.copy(), 0.0
+    while moved < cfg.clear_max - 1e-9:
+        force = _sideways(fb)
+        size = float(np.linalg.norm(force))
+        if size <= cfg.contact_force:
+            break
+        target = target.copy()
+        target[:3, 3] += cfg.clear_step * force / size
+        moved += cfg.clear_step
+        fb = yield target
+    if moved > 0 and cfg.clear_margin > 0:
+        away = target[:3, 3] - start[:3, 3]
+        target = target.copy()
+        target[:3, 3] += cfg.clear_margin * away / np.linalg.norm(away)
+        for _ in range(3):
+            fb = yield target
+    return fb
+
+
 def release_targets(hold: np.ndarray, width: float, cfg: ReleaseConfig = ReleaseConfig(),
-                    reference: np.ndarray | None = None) -> Releaser:
+                    reference: np.ndarray | None = None, wrench: np.ndarray | None = None) -> Releaser:
     """Yield 4x4 EE targets; send() each the Feedback after the step. Ends when the hand is free.
 
     hold: the EE pose now (held while settling); reference: where the hand was last sent (the
-    skill's last target), for the drift check; None skips it.
+    skill's last target), for the drift check and the clear; None skips both. wrench: the
+    external wrench on the hand now (None: the driver reports none, no clear).
     """
-    fb = Feedback(float(width), hold[:3, 3].copy())
+    fb = Feedback(float(width), hold[:3, 3].copy(), wrench)
+    last = hold
     if fb.width < OPEN_WIDTH and cfg.settle_steps > 0:
         fb, stalled = yield from _hold(hold, fb, cfg)
         if stalled and cfg.unjam_max > 0:
             fb = yield from _unjam(hold, fb, cfg)
-    if reference is None or cfg.follow <= 0:
+    if reference is None:
         return
     drift = np.asarray(fb.position, float) - reference[:3, 3]
     size = float(np.linalg.norm(drift))
-    if size > cfg.drift_max:
-        target = reference.copy()
-        target[:3, 3] += drift / size * (size + cfg.follow)
+    if cfg.follow > 0 and size > cfg.drift_max:
+        last = reference.copy()
+        last[:3, 3] += drift / size * (size + cfg.follow)
         for _ in range(cfg.follow_steps):
-            yield target
+            fb = yield last
+    if cfg.clear_max > 0:
+        yield from _clear(last, fb, cfg)

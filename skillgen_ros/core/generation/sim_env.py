@@ -136,7 +136,7 @@ class SimGenerationEnv:
         if held in objects:  # a held object moves with the hand (rigid attachment)
             objects[held] = self.grasps.pose_now(held, ee.matrix())
         return Observation(ee_pose=ee, gripper=w.finger_positions(), joint_positions=w.joint_positions(),
-                           object_poses=objects, images=images)
+                           object_poses=objects, images=images, ee_wrench=w.ee_wrench())
 
     def estimate_poses(self) -> dict[str, Pose]:
         if self.cfg.perception == "ground_truth":

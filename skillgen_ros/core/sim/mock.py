@@ -90,6 +90,9 @@ class MockWorld:
     def ee_pose(self) -> Pose:
         return self._ee
 
+    def ee_wrench(self) -> np.ndarray:
+        return np.zeros(6)  # kinematic: nothing pushes back
+
     def object_poses(self) -> dict[str, Pose]:
         return dict(self._poses)
 

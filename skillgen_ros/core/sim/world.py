@@ -24,6 +24,7 @@ from . import camera as cam
 from .assets import lowpoly_panda_urdf
 from .commands import (Contact, JointTrajectory, TrajectoryCode, TrajectoryResult, validate_gripper,  # noqa: F401
                        validate_osc_target, validate_trajectory)
+from .contacts import hand_wrench
 from .control import JointGains, OscGains, TrajectorySampler, joint_torques, osc_torques
 
 TABLE_HALF = (0.75, 0.8, 0.025)
@@ -380,6 +381,10 @@ class SimWorld:
 
     def robot_in_collision_with(self, object_ids: Iterable[str]) -> bool:
         return any(c.distance <= 0.0 for c in self.robot_contacts(object_ids))
+
+    def ee_wrench(self) -> np.ndarray:
+        """(6,) external force/torque on the hand and fingers, world frame, torque about the EE."""
+        return hand_wrench(self.p, self.robot, [self.hand_link, *self.fingers], self.ee_pose().position)
 
     # ------------------------------------------------------------------ cameras
     def camera_pose(self, name: str) -> np.ndarray:

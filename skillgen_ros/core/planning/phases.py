@@ -25,34 +25,18 @@ def _translate_z(d: float) -> np.ndarray:
     return T
 
 
-def _turn_z(a: float) -> np.ndarray:
-    T = np.eye(4)
-    T[:2, :2] = [[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]
-    return T
-
-
 def cartesian_line(kin: PandaKinematics, ik: IKSolver, q0, distance: float, steps: int = 10,
                    max_joint_step: float = 0.2, tol_m: float = 1e-3,
-                   tol_rad: float = 1e-3, partial: bool = False, yaw_slack: float = 0.0) -> np.ndarray:
+                   tol_rad: float = 1e-3, partial: bool = False) -> np.ndarray:
     """Joint waypoints (K,7) moving the EE `distance` metres along its own z (negative = back).
 
     partial: where IK loses the line (e.g. the wrist at its joint limit after a grasp), return
-    the part already done instead of failing, provided at least one step was made.
-    yaw_slack: where IK loses the exact line, let the hand turn about its own z by up to this
-    (rad) instead: that is the last wrist joint's axis, so a wrist at its limit can still move
-    straight, slightly turned (fine for a retreat, whose only job is to get clear)."""
+    the part already done instead of failing, provided at least one step was made."""
     q = np.asarray(q0, float).copy()
     T0 = kin.fk(q)
     dense = [q]
-    yaw = 0.0
-    turns = [d for d in (0.02, -0.02, 0.05, -0.05, 0.1, -0.1, 0.2, -0.2) if abs(d) <= yaw_slack]
     for s in np.linspace(0.0, 1.0, steps + 1)[1:]:
-        T = T0 @ _translate_z(s * distance)
-        qn = ik.solve_local(T @ _turn_z(yaw), q)
-        for d in turns if qn is None else ():
-            if abs(yaw + d) <= yaw_slack and (qn := ik.solve_local(T @ _turn_z(yaw + d), q)) is not None:
-                yaw += d
-                break
+        qn = ik.solve_local(T0 @ _translate_z(s * distance), q)
         why = None
         if qn is None:
             why = f"IK lost the line at {s * distance:+.3f} m"

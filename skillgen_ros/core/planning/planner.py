@@ -42,7 +42,6 @@ from .timing import JointTrajectory, time_parameterize
 # A measured start may sit slightly past a joint limit (tracking error, encoder noise); within this
 # tolerance it is clipped onto the limit instead of rejected.
 START_LIMIT_TOL = 0.05  # rad
-RETREAT_YAW_SLACK = 0.2  # rad the hand may turn about its z on a retreat where the wrist is at its limit
 
 
 class PlanStatus(enum.IntEnum):
@@ -219,11 +218,9 @@ class MotionPlanner:
         if retreat and self.retreat_distance > 0:
             why = None
             try:
-                retreat_path = cartesian_line(self.kin, self.ik, q0, -self.retreat_distance,
-                                              yaw_slack=RETREAT_YAW_SLACK)
+                retreat_path = cartesian_line(self.kin, self.ik, q0, -self.retreat_distance)
                 if touching and collides(retreat_path[-1:])[0]:  # still against the fixture: back out further
-                    retreat_path = cartesian_line(self.kin, self.ik, q0, -2 * self.retreat_distance, steps=20,
-                                                  yaw_slack=RETREAT_YAW_SLACK)
+                    retreat_path = cartesian_line(self.kin, self.ik, q0, -2 * self.retreat_distance, steps=20)
                 if not self._segment_free(retreat_path, edge_free, allow_start):
                     why = "retreat collides"
             except CartesianPathError as e:

@@ -223,4 +223,3 @@ def test_start_with_the_elbow_grazing_an_obstacle_escapes_in_the_null_space(setu
             np.testing.assert_allclose(kin.fk(q)[:3, 3], T0[:3, 3], atol=1e-3)
     finally:
         cm.set_boxes([])
-

@@ -22,7 +22,8 @@ the nut's handle leaning on a finger as the ring sticks on the peg. Friction fro
 push lifts the nut on the retreat. So while the driver reports a sideways (horizontal) force on
 the hand, the hand steps along it, away from what pushes, up to 3 cm, and a little past the point
 where the force vanishes (clear). A force straight down (the object's weight on a finger) gives
-no direction and is left to the retreat.
+no direction and is left to the retreat. The 0.05 N threshold suits the simulated wrench, which
+is exact; a real arm's estimate needs its noise floor (1-2 N for a Panda's O_F_ext_hat_K).
 
 The moves need only the measured gripper width, EE position and, for the clear, the external
 wrench the driver reports (a Panda's O_F_ext_hat_K), so the same code runs in-process and over

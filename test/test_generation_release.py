@@ -10,16 +10,17 @@ HOLD[:3, :3] = Rotation.from_euler("xz", [180, 30], degrees=True).as_matrix()  #
 HOLD[:3, 3] = [0.6, 0.1, 0.05]
 
 
-def drive(gen, fingers, hand=lambda target: target[:3, 3]):
-    """Run the generator against a finger model fingers(target, width) -> width and a hand model
-    hand(target) -> EE position (default: the OSC reaches every target)."""
+def drive(gen, fingers, hand=lambda target: target[:3, 3], wrench=lambda target: None):
+    """Run the generator against a finger model fingers(target, width) -> width, a hand model
+    hand(target) -> EE position (default: the OSC reaches every target) and a force model
+    wrench(target) -> the external wrench on the hand (default: none reported)."""
     targets, width = [], None
     try:
         target = next(gen)
         while True:
             targets.append(target)
             width = fingers(target, width)
-            target = gen.send(Feedback(width, hand(target)))
+            target = gen.send(Feedback(width, hand(target), wrench(target)))
     except StopIteration:
         return targets
 
@@ -148,14 +149,8 @@ def touching(normal, clear_after):
 
 
 def drive_wrench(gen, wrench):
-    targets = []
-    try:
-        target = next(gen)
-        while True:
-            targets.append(target)
-            target = gen.send(Feedback(0.078, target[:3, 3], wrench(target)))
-    except StopIteration:
-        return targets
+    """drive() with open fingers that stay open."""
+    return drive(gen, lambda T, w: 0.078, wrench=wrench)
 
 
 def test_a_finger_still_on_the_object_clears_along_the_sideways_force():

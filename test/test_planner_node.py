@@ -173,8 +173,7 @@ def test_a_seeded_request_plans_the_same_path_whatever_ran_before(ros_domain, st
     from skillgen_ros.core.geometry import Pose
     from skillgen_ros.core.planning.ik import IKSolver
 
-    # a generous IK budget: no search cut by its timeout (that would depend on the CPU)
-    planner = start_node("planner", "--ros-args", "-p", "ik_timeout:=0.5")
+    planner = start_node("planner")
     kin = PandaKinematics()
     down = np.array([1.0, 0.0, 0.0, 0.0])
     start = IKSolver(kin, rng=0).solve(Pose([0.5, -0.25, 0.15], down).matrix(), seed_q=Q_HOME,

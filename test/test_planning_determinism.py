@@ -34,8 +34,7 @@ def world():
 def _planner(kin, seed=None):
     cm = CollisionModel(kin)
     cm.set_boxes([WALL])
-    # generous IK budget: determinism holds when no search is cut by its timeout
-    return MotionPlanner(kin, IKSolver(kin, rng=seed), cm, ik_timeout=0.5, seed=seed)
+    return MotionPlanner(kin, IKSolver(kin, rng=seed), cm, seed=seed)
 
 
 def test_ik_draws_are_per_call_after_reseed(world):

@@ -73,3 +73,27 @@ def test_bad_input(kin):
         ik.solve(np.full((4, 4), np.nan))
     with pytest.raises(InvalidInputError):
         ik.solve(np.eye(4), timeout=0.0)
+
+
+def test_an_iteration_budget_finds_the_same_solutions_however_slow_the_machine(kin):
+    """max_iterations bounds the search, not the clock: a solver slowed down (here by a checker that
+    sleeps, as a loaded CPU would) finds exactly what the fast one finds from the same rng."""
+    import time
+
+    T = kin.fk(np.array([0.3, 0.4, -0.2, -2.1, 0.1, 2.4, 0.5]))
+
+    def slow(Q):
+        time.sleep(0.002)
+        return np.zeros(len(Q), bool)
+
+    results = [IKSolver(kin, collision_checker=c, rng=9).solve(T, timeout=30.0, max_solutions=50,
+                                                               max_iterations=120)
+               for c in (lambda Q: np.zeros(len(Q), bool), slow)]
+    assert results[1].time > 1.5 * results[0].time
+    for r in results:
+        assert r.ok and r.iterations == 120
+    assert len(results[0].solutions) == len(results[1].solutions) >= 2
+    for a, b in zip(*(r.solutions for r in results)):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(InvalidInputError):
+        IKSolver(kin).solve(T, max_iterations=0)

@@ -223,3 +223,27 @@ def test_start_with_the_elbow_grazing_an_obstacle_escapes_in_the_null_space(setu
             np.testing.assert_allclose(kin.fk(q)[:3, 3], T0[:3, 3], atol=1e-3)
     finally:
         cm.set_boxes([])
+
+
+def test_a_wrist_at_its_limit_moves_in_the_null_space_before_the_retreat(setup):
+    """After a low grasp the wrist can sit at joint 7's limit, where IK loses the straight retreat
+    within 1.5 cm -- too little to lift the held object off the table. The arm first moves along
+    its self-motion (the hand and the object stay put), then retreats the full 5 cm from there."""
+    kin, cm, planner = setup
+    cm.set_boxes([])
+    q0 = np.array([0.1788, 0.6052, -0.4054, -2.2257, 0.7057, 2.7423, kin.upper[6]])
+    T0 = kin.fk(q0)
+    assert T0[2, 3] == pytest.approx(0.015, abs=1e-3) and T0[2, 2] < -0.99  # low, pointing down
+    plate = AttachedObject.from_box("plate", [0.03, 0.03, 0.012], np.eye(4), spacing=0.02)
+    assert cm.in_collision(q0[None], plate)[0]  # resting on the table
+    target = Pose([0.59, 0.037, 0.18], [0.7147, 0.6994, 0.0, 0.0])
+    res = planner.plan(q0, target, Mode.TRANSFER, attached=plate, start_support="table", timeout=5.0)
+    assert res.ok, res.message
+    assert "null space first" in res.message
+    a, b = next((a, b) for name, a, b in res.segments if name == "retreat")
+    ee = kin.fk_batch(res.joint_path[a:b + 1])[:, :3, 3]
+    k = int(np.argmax(np.linalg.norm(ee - T0[:3, 3], axis=1) > 1e-3))  # where the line starts
+    assert k >= 2 and np.abs(res.joint_path[k - 1] - q0).max() <= 0.5
+    np.testing.assert_allclose(ee[:k], np.repeat(T0[None, :3, 3], k, 0), atol=1e-3)  # self-motion
+    assert ee[-1, 2] - T0[2, 3] == pytest.approx(planner.retreat_distance, abs=3e-3)  # then 5 cm back
+    assert not cm.in_collision(res.joint_path[b:b + 1], plate)[0]

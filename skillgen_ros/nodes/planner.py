@@ -65,7 +65,8 @@ LATCHED = QoSProfile(depth=1, reliability=QoSReliabilityPolicy.RELIABLE,
                      durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
 PARAMS = {  # name: (default, description)
     "default_timeout": (2.0, "planning budget (s) when the request's timeout is <= 0"),
-    "ik_timeout": (0.05, "IK budget (s) for the goal"),
+    "ik_iterations": (2000, "goal IK budget in batch iterations (about 50 ms; machine-independent)"),
+    "ik_timeout": (0.5, "wall-time cap (s) on the goal IK (a safety net; the iterations bound it)"),
     "retreat_distance": (0.05, "retreat along the gripper's -z (m)"),
     "approach_distance": (0.05, "approach along the gripper's +z (m)"),
     "box_margin": (0.005, "safety margin against scene boxes (m)"),
@@ -98,6 +99,8 @@ class PlannerNode(Node):
         p = {n: self.get_parameter(n).value for n in PARAMS}
         if p["velocity_scale"] <= 0 or p["velocity_scale"] > 1 or p["dt"] <= 0:
             raise ParameterError("velocity_scale must be in (0, 1] and dt > 0")
+        if p["ik_iterations"] < 1 or p["ik_timeout"] <= 0:
+            raise ParameterError("ik_iterations must be >= 1 and ik_timeout > 0")
         self.p = p
         seed = int(p["seed"]) or None
         self.kin = PandaKinematics()
@@ -105,6 +108,7 @@ class PlannerNode(Node):
         self.ik = IKSolver(self.kin, rng=seed)
         self.planner = MotionPlanner(self.kin, self.ik, self.cm, p["retreat_distance"],
                                      p["approach_distance"], ik_timeout=p["ik_timeout"],
+                                     ik_iterations=p["ik_iterations"],
                                      velocity_scale=p["velocity_scale"], dt=p["dt"], seed=seed)
         self._boxes: dict[str, Box] = {}
         # Readers are made on the first request that needs them: a request with start_positions and

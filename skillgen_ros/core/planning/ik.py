@@ -26,7 +26,7 @@ from .kinematics import PandaKinematics
 
 class IKStatus(enum.Enum):
     SUCCESS = "SUCCESS"
-    FAILED = "FAILED"  # no solution within the timeout
+    FAILED = "FAILED"  # no solution within the iteration budget / timeout
     IN_COLLISION = "IN_COLLISION"  # solutions exist, but every one found collides
 
 
@@ -81,18 +81,22 @@ class IKSolver:
         return Q[0].copy() if done[0] else None
 
     def solve(self, target, seed_q=None, timeout: float = 0.005, tol: float = 1e-5,
-              max_solutions: int = 1, distinct: float = 0.05) -> IKResult:
+              max_solutions: int = 1, distinct: float = 0.05,
+              max_iterations: int | None = None) -> IKResult:
         """Solve for the EE pose `target` (Pose or 4x4). Seed row 0 with `seed_q` if given.
 
         With max_solutions > 1 it keeps going until that many solutions that differ by more than
-        `distinct` rad (max-norm) are found or the timeout expires.
+        `distinct` rad (max-norm) are found, `max_iterations` batch iterations have run, or the
+        timeout expires. An iteration budget makes the answer independent of CPU speed and load
+        (the same rng gives the same solutions on any machine) as long as the timeout, then only a
+        safety cap, does not cut it first.
         """
         t0 = time.perf_counter()
         T_target = np.ascontiguousarray(target.matrix() if isinstance(target, Pose) else np.asarray(target, float))
         if T_target.shape != (4, 4) or not np.all(np.isfinite(T_target)):
             raise InvalidInputError("IK target must be a finite Pose or 4x4 matrix")
-        if timeout <= 0 or tol <= 0 or max_solutions < 1:
-            raise InvalidInputError("IK timeout and tol must be > 0, max_solutions >= 1")
+        if timeout <= 0 or tol <= 0 or max_solutions < 1 or (max_iterations is not None and max_iterations < 1):
+            raise InvalidInputError("IK timeout and tol must be > 0, max_solutions and max_iterations >= 1")
         Q = self._sample(self.batch)
         if seed_q is not None:
             seed = np.asarray(seed_q, float).reshape(7)
@@ -124,7 +128,7 @@ class IKSolver:
                     break
                 Q[idx] = self._sample(len(idx))
                 state[idx] = (np.inf, 0.0, 0.0)
-            if time.perf_counter() - t0 > timeout:
+            if (max_iterations is not None and it >= max_iterations) or time.perf_counter() - t0 > timeout:
                 break
         elapsed = time.perf_counter() - t0
         if solutions:

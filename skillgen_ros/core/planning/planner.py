@@ -17,8 +17,10 @@ IK randomness (restarts) is drawn per plan() call from SeedSequence((seed, k)), 
 calls since `reseed(seed)`. RRT-Connect is OMPL's: before each search OMPL's process-wide seed
 generator restarts from SeedSequence((seed, k, 1)) and the search gets a fresh sampler and path
 simplifier, so a plan depends on (seed, k) and its inputs only, not on what the process planned
-before (a run sharded across processes plans what the unsharded run plans). IK and RRT are
-time-budgeted: a search cut by its timeout still depends on CPU speed.
+before (a run sharded across processes plans what the unsharded run plans). The goal IK is
+budgeted in iterations (`ik_iterations`; `ik_timeout` is only a safety cap), so it finds the same
+solutions on a loaded or slower machine. RRT-Connect is time-budgeted: a search cut by its timeout
+still depends on CPU speed (in practice the searches finish far inside it).
 """
 from __future__ import annotations
 
@@ -90,13 +92,18 @@ def _seed_like(v) -> bool:
 class MotionPlanner:
     def __init__(self, kin: PandaKinematics, ik: IKSolver, collision: CollisionModel,
                  retreat_distance: float = 0.05, approach_distance: float = 0.05,
-                 dt: float = 0.01, ik_timeout: float = 0.05,
+                 dt: float = 0.01, ik_timeout: float = 0.5, ik_iterations: int = 2000,
                  ik_solutions: int = 4, velocity_scale: float = 1.0, seed: int | None = None):
+        """ik_iterations: the goal IK's budget in batch iterations (2000 take about 50 ms on one
+        2020s core); ik_timeout only caps its wall time, so plans do not depend on CPU load."""
+        if ik_iterations < 1 or ik_timeout <= 0:
+            raise InvalidInputError(f"ik_iterations must be >= 1 and ik_timeout > 0, got {ik_iterations}, {ik_timeout}")
         self.kin, self.ik, self.cm = kin, ik, collision
         self.retreat_distance = float(retreat_distance)
         self.approach_distance = float(approach_distance)
         self.dt = float(dt)
         self.ik_timeout = float(ik_timeout)
+        self.ik_iterations = int(ik_iterations)
         self.ik_solutions = int(ik_solutions)
         self.velocity_scale = float(velocity_scale)
         self.seed: int | None = None
@@ -198,7 +205,7 @@ class MotionPlanner:
         t = time.perf_counter()
         T_goal = target.matrix()
         ik_res = self.ik.solve(T_goal, seed_q=q0, timeout=self.ik_timeout,
-                               max_solutions=self.ik_solutions)
+                               max_solutions=self.ik_solutions, max_iterations=self.ik_iterations)
         timings["ik"] = time.perf_counter() - t
         if not ik_res.solutions:
             return fail(PlanStatus.IK_FAILED, "no IK solution for the target pose")
@@ -209,7 +216,8 @@ class MotionPlanner:
         rounds = (
             lambda: [q for q in ik_res.solutions if not collides(q[None], allow_goal)[0]],
             lambda: list(checked_ik.solve(T_goal, seed_q=q0, timeout=2 * self.ik_timeout,
-                                          max_solutions=3 * self.ik_solutions).solutions),
+                                          max_solutions=3 * self.ik_solutions,
+                                          max_iterations=2 * self.ik_iterations).solutions),
         )
 
         # retreat
@@ -234,9 +242,13 @@ class MotionPlanner:
                     notes.append(f"{why}; retreat skipped (start is clear)")
                 else:
                     retreat_path = self._partial_retreat(q0, edge_free, allow_start, collides)
-                    if retreat_path is None:
-                        return fail(PlanStatus.START_IN_COLLISION, why)
-                    notes.append(f"{why}; retreat shortened to where IK held the line")
+                    if retreat_path is not None:
+                        notes.append(f"{why}; retreat shortened to where IK held the line")
+                    else:
+                        retreat_path = self._self_motion_retreat(q0, edge_free, allow_start, collides)
+                        if retreat_path is None:
+                            return fail(PlanStatus.START_IN_COLLISION, why)
+                        notes.append(f"{why}; the arm moved in its null space first, then retreated")
         retreat_path = np.vstack([escape[:-1], retreat_path])
         timings["retreat"] = time.perf_counter() - t
 
@@ -306,11 +318,12 @@ class MotionPlanner:
         return tuple(n for n in names
                      if collides(q0[None], replace(allow, hand_object=allow.hand_names() + tuple(m for m in names if m != n)))[0])
 
-    def _null_space_escape(self, q0, collides, step: float = 0.02, reach: float = 0.5) -> np.ndarray | None:
+    def _null_space_escape(self, q0, blocked, step: float = 0.02, reach: float = 0.5) -> np.ndarray | None:
         """A start in collision (the elbow grazing an obstacle after a replayed skill, inside the
         spheres' padding) moved along the arm's self-motion, which keeps the hand -- and what it
-        holds -- where it is, until it is clear. MoveIt's FixStartStateCollision jiggles the joints
-        at random instead; that would drag a grasped object. Returns the path (q0 first) or None."""
+        holds -- where it is, until `blocked(q)` is false (clear). MoveIt's FixStartStateCollision
+        jiggles the joints at random instead; that would drag a grasped object. Returns the path
+        (q0 first) or None."""
         T0 = self.kin.fk(q0)
         best = None
         for sign in (1.0, -1.0):
@@ -324,11 +337,32 @@ class MotionPlanner:
                 if q is None or not self.kin.within_limits(q) or np.abs(q - q0).max() > reach:
                     break
                 path.append(q)
-                if not collides(q):
+                if not blocked(q):
                     if best is None or len(path) < len(best):
                         best = path
                     break
         return None if best is None else np.array(best)
+
+    def _self_motion_retreat(self, q0, edge_free, allow, collides) -> np.ndarray | None:
+        """Where IK loses the retreat line at once (the wrist at its joint limit after a low grasp)
+        and the start is in contact, move along the self-motion -- hand and held object stay put --
+        until the whole line is followable and clear, then retreat from there."""
+        lines: dict[bytes, np.ndarray] = {}
+
+        def line_blocked(q) -> bool:
+            try:
+                line = cartesian_line(self.kin, self.ik, q, -self.retreat_distance)
+            except CartesianPathError:
+                return True
+            if collides(line[-1:])[0] or not self._segment_free(line, edge_free, allow):
+                return True
+            lines[q.tobytes()] = line
+            return False
+
+        escape = self._null_space_escape(q0, line_blocked)
+        if escape is None or not self._segment_free(escape, edge_free, allow):
+            return None
+        return np.vstack([escape[:-1], lines[escape[-1].tobytes()]])
 
     @staticmethod
     def _segment_free(path: np.ndarray, edge_free, allow) -> bool:

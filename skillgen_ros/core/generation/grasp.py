@@ -44,3 +44,57 @@ def grasp_step(gripper_commands: np.ndarray) -> int | None:
         return None
     opened = np.flatnonzero(g <= 0)
     return int(opened[-1] + 1) if len(opened) else 0
+
+
+# -- transfer skills carry the object, not the hand ------------------------------------------
+# SkillGen replays a transfer skill as T_W^{A'} = T_W^{O'} T_O^A: the hand repeats the demo's
+# motion relative to the target object (the peg). The held object lands where the demo put it only
+# if it sits in the hand as it did in the demo; action noise on the grasp shifts it by millimetres
+# and degrees (Square: a 6 deg yaw, 6 cm out from the fingers, sets the nut on the peg's top
+# instead of around it). With the object in the hand now (T_E^H, from the attempt's grasp) and in
+# the demo (T_E^H_demo, from the demo's grasp skill), every target becomes T_W^{A'} C with
+# C = T_E^H_demo (T_E^H)^-1, so that T_W^{A'} C T_E^H = T_W^{O'} T_O^A T_E^H_demo: the held
+# object, not the hand, follows the demo. Offsets beyond the limits below are not noise (a wrong
+# estimate, another grasp), and are left alone.
+MAX_CORRECTION_M = 0.02
+MAX_CORRECTION_RAD = 0.35
+
+
+def object_in_hand(T_W_E_close: np.ndarray, T_W_O_before: np.ndarray) -> np.ndarray:
+    """T_E^H at a grasp: the object's pose before its grasp skill (the estimate the skill was
+    replayed in) in the frame of the hand when the close command went out. The same on both sides
+    of the correction -- the demo's (demo_object_in_hand) and the attempt's -- so the object's
+    settling as the fingers close, alike in both, cancels."""
+    return invert(np.asarray(T_W_E_close, float)) @ np.asarray(T_W_O_before, float)
+
+
+def demo_object_in_hand(demo, task, skill_index: int) -> np.ndarray | None:
+    """T_E^H in `demo` for the object that `skill_index` (a transfer skill) carries: its grasp
+    skill's EE pose at the close command (before any lift), relative to the object's pose before
+    that skill, inverted. None if the skill carries nothing or the demo's grasp skill does not end
+    closed."""
+    skills = sorted(task.skills, key=lambda s: s.index)
+    skill = next((s for s in skills if s.index == skill_index), None)
+    held = getattr(skill, "attached_object", None) if skill is not None else None
+    if skill is None or skill.mode != "transfer" or not held:
+        return None
+    grasp = next((s for s in reversed(skills) if s.index < skill_index and s.object_id == held), None)
+    if grasp is None:
+        return None
+    seg = demo.skill(grasp.index)
+    k = grasp_step(seg.gripper)
+    if k is None:
+        return None
+    return object_in_hand(seg.ee_poses_in_object[k], np.eye(4))  # the segment is in the object's frame
+
+
+def in_hand_correction(T_E_H_demo: np.ndarray | None, T_E_H_now: np.ndarray | None) -> np.ndarray:
+    """C = T_E^H_demo (T_E^H_now)^-1, the right factor on a transfer skill's targets; the identity
+    when either is unknown or the offset is beyond MAX_CORRECTION_M / MAX_CORRECTION_RAD."""
+    if T_E_H_demo is None or T_E_H_now is None:
+        return np.eye(4)
+    C = np.asarray(T_E_H_demo, float) @ invert(np.asarray(T_E_H_now, float))
+    angle = float(np.arccos(np.clip((np.trace(C[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)))
+    if not np.all(np.isfinite(C)) or np.linalg.norm(C[:3, 3]) > MAX_CORRECTION_M or angle > MAX_CORRECTION_RAD:
+        return np.eye(4)
+    return C

@@ -3,9 +3,7 @@ a whole skill with feedback, cancel mid-skill, and bad goals."""
 import math
 import time
 
-import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from conftest import REPO, NodeProcess, client_node, next_domain_id
 from skillgen_ros.answered import first_answer
@@ -61,13 +59,9 @@ def test_replay_skill_streams_the_segment_and_reports_every_step(loop):
     from rclpy.action import ActionClient
     from skillgen_interfaces.action import ReplaySkill
     from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
-    from skillgen_ros.core.geometry import Pose
-    from skillgen_ros.core.skills.replay import plan_replay
     from skillgen_ros.core.tasks import get_task
-    from skillgen_ros.nodes import convert
 
-    demo = load_source_demos(expand_bag_paths([SQUARE]), get_task("Square"))[0]
-    n = demo.skill(0).num_steps
+    n = load_source_demos(expand_bag_paths([SQUARE]), get_task("Square"))[0].skill(0).num_steps
     dom, _ = loop
     with client_node(dom, "replay_client") as (node, ex):
         client = ActionClient(node, ReplaySkill, "replay_skill")
@@ -88,17 +82,6 @@ def test_replay_skill_streams_the_segment_and_reports_every_step(loop):
         assert max(abs(a) for a in r.actions) <= 1.0
         assert set(r.actions_abs[7::8]) <= {-1.0, 1.0}
 
-        # an in-hand correction C: the streamed targets are T_W^O' T_O^A C (the hand has tracked the
-        # segment's first steps by its end, so the last ones go out unclipped)
-        C = Pose([0.004, -0.002, 0.0], Rotation.from_rotvec([0.0, 0.0, 0.1]).as_quat())
-        corrected, _ = _send(node, ex, client, _goal(in_hand_correction=convert.pose_to_msg(C)))
-        assert corrected.result.success, corrected.result.message
-        T_W_O = Pose([0.5, -0.1, 0.01], [0, 0, 0, 1]).matrix()
-        want = plan_replay(demo.skill(0), T_W_O, correction=C.matrix()).targets[-5:, :3, 3]
-        got = np.asarray(corrected.result.actions_abs).reshape(-1, 8)[-5:, :3]
-        np.testing.assert_allclose(got, want, atol=1e-6)
-        assert np.abs(got - np.asarray(r.actions_abs).reshape(-1, 8)[-5:, :3]).max() > 1e-3
-
         # canceled after a few steps: the steps done so far come back, marked CANCELED
         wrapped, feedback = _send(node, ex, client, _goal(skill_index=1), cancel_after=5)
         r = wrapped.result
@@ -112,10 +95,6 @@ def test_replay_skill_streams_the_segment_and_reports_every_step(loop):
             assert not wrapped.result.success and wrapped.result.reason == reason, wrapped.result.message
         bad = _goal()
         bad.object_pose.position.x = math.nan
-        wrapped, _ = _send(node, ex, client, bad)
-        assert not wrapped.result.success and wrapped.result.reason == "INVALID_INPUT", wrapped.result.reason
-        bad = _goal()
-        bad.in_hand_correction.orientation.w = 2.0  # not a unit quaternion
         wrapped, _ = _send(node, ex, client, bad)
         assert not wrapped.result.success and wrapped.result.reason == "INVALID_INPUT", wrapped.result.reason
         wrapped, _ = _send(node, ex, client, _goal())

@@ -8,7 +8,6 @@ maps the action goal onto a RunRequest, streams feedback (attempts, successes, r
 record the session through the recorder's services.
 
 Parameters (params/datagen.yaml): demos_dir, output_root, collision_source, action_noise,
-in_hand_correction (skillgen transfer skills carry the object as the demo did: core/generation/grasp.py),
 release.* (how the hand lets go before a planned motion: core/generation/release.py), driver_node and
 video_camera_hz (the driver's camera rate while an attempt is filmed), and the per-call timeouts
 (timeout_reset, timeout_perception, timeout_plan, timeout_execute, timeout_skill, timeout_state).
@@ -47,7 +46,6 @@ class DatagenNode(Node):
         self.declare_parameter("output_root", "out")
         self.declare_parameter("collision_source", "scene")
         self.declare_parameter("action_noise", 0.05)
-        self.declare_parameter("in_hand_correction", True)
         for k, v in _RELEASE_PARAMS.items():
             self.declare_parameter(f"release.{k}", v)
         self.declare_parameter("driver_node", "sim_driver")
@@ -100,7 +98,6 @@ class DatagenNode(Node):
                           augment_rotation_deg=float(g.augment_rotation_deg or 80.0),
                           action_noise=float(self.get_parameter("action_noise").value),
                           release=self._release,
-                          in_hand_correction=bool(self.get_parameter("in_hand_correction").value),
                           selection=g.selection or "random", output_dir=out, source_demos=g.source_demos,
                           **_video_attempts(g), **_initiation_candidates(g))
 

@@ -316,17 +316,14 @@ class RosGraphEnv:
         return status, obs
 
     def replay_skill(self, skill_index: int, demo_index: int, T_W_O: np.ndarray, sigma: float,
-                     recovery: bool, seed: int, correction: np.ndarray | None = None):
-        """The skill_replay action: returns (steps, ok, reason, message); steps as arrays.
-        correction: the transfer skill's in-hand correction (EE frame), None = identity."""
+                     recovery: bool, seed: int):
+        """The skill_replay action: returns (steps, ok, reason, message); steps as arrays."""
         if not self.replay_ac.wait_for_server(timeout_sec=5.0):
             raise GraphCallError("replay_skill action server is not available", reason="SKILL_FAILED")
         goal = ReplaySkill.Goal(skill_index=int(skill_index), source_demo=int(demo_index),
                                 source_demos=self.demos_dir, task=self.task, selection="random",
                                 action_noise=float(sigma), recovery=bool(recovery), seed=int(seed))
         goal.object_pose = convert.pose_to_msg(Pose.from_matrix(T_W_O))
-        if correction is not None:
-            goal.in_hand_correction = convert.pose_to_msg(Pose.from_matrix(correction))
         self._moved = True
         result = self._wait_action(self.replay_ac.send_goal_async(goal), self.t["skill"])
         r = result.result

@@ -158,7 +158,6 @@ class SkillReplayNode(Node):
             demos = self.demos_for(g.task, g.source_demos)
             obj = validate_pose(*convert.pose_arrays_from_msg(g.object_pose), "object_pose")
             T_W_O = obj.matrix()
-            correction = validate_pose(*convert.pose_arrays_from_msg(g.in_hand_correction), "in_hand_correction").matrix()
             rng = np.random.default_rng(int(g.seed))
             if g.source_demo >= 0:
                 if g.source_demo >= len(demos):
@@ -180,7 +179,7 @@ class SkillReplayNode(Node):
             if state is None:
                 return finish(False, "TIMEOUT", "no joint_states from the driver")
         q, width, current = self._unpack(state)
-        plan = plan_replay(seg, T_W_O, current, recovery=bool(g.recovery), correction=correction)
+        plan = plan_replay(seg, T_W_O, current, recovery=bool(g.recovery))
         actions, abs_, ees, qs, widths = [], [], [], [], []
         n = len(plan.targets)
         for k in range(n):

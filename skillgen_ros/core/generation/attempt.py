@@ -26,7 +26,6 @@ from ..skills.protocols import SkillLike, TaskLike
 from ..skills.segment import SourceDemo
 from ..skills.transform import matrix_to_array
 from .episode import Episode, EpisodeRecorder, Observation, StepLabel
-from .grasp import demo_object_in_hand, in_hand_correction, object_in_hand
 from .initiation import initiation_candidates
 from .outcome import GOAL_INFEASIBLE, FailureReason, motion_failure  # noqa: F401 (re-exported)
 from .release import Feedback, ReleaseConfig, release_targets
@@ -77,10 +76,6 @@ class GenerationConfig:
     # hold while the fingers open (settle), unjam fingers stopped short of open, follow a push by
     # an open finger, clear a finger still touching. ReleaseConfig().without_moves() = only the settle.
     release: ReleaseConfig = ReleaseConfig()
-    # skillgen transfer skills: correct the targets for how the held object sits in the hand
-    # relative to the demo (grasp.in_hand_correction), so the object follows the demo; False = the
-    # paper's T_W^{O'} T_O^A exactly.
-    in_hand_correction: bool = True
 
     def __post_init__(self):
         if (self.action_noise < 0 or self.interpolation_steps < 0 or self.fixed_steps < 0 or self.max_steps < 1
@@ -128,8 +123,6 @@ class _Attempt:
         self.gripper = -1.0  # last gripper command; the hand starts open
         self.last_target: np.ndarray | None = None  # last noise-free pose target streamed
         self.chosen: list[int] = []
-        self.close_ee: np.ndarray | None = None  # EE pose observed when the gripper was last commanded closed
-        self.in_hand: dict[str, np.ndarray] = {}  # object -> T_E^H at its grasp, from its estimate (grasp.py)
 
     # -- bookkeeping
     def _budget(self) -> None:
@@ -148,8 +141,6 @@ class _Attempt:
         except (SkillGenError, TimeoutError) as e:
             raise _Fail(FailureReason.SKILL_FAILED, f"control step failed: {e}") from e
         self.rec.add(self.obs, action, commanded, gripper, label)
-        if gripper > 0 >= self.gripper:
-            self.close_ee = current
         self.obs, self.gripper, self.last_target = nxt, float(gripper), np.asarray(target, float)
 
     def _timed(self, stage: str, t: float) -> None:
@@ -268,8 +259,7 @@ class _Attempt:
         self.settle_gripper(StepLabel(True, skill.index, j, matrix_to_array(seg.initiation_in_world(T_W_O))))
         for k, (j, T_W_O) in enumerate(candidates):
             seg = self.demos[j].skill(skill.index)
-            C = self.in_hand_correction(skill, j)
-            init = seg.initiation_in_world(T_W_O) @ C
+            init = seg.initiation_in_world(T_W_O)
             goal = perturb_initiation(init, self.cfg.augmentation, self.rng_aug) if self.cfg.augment else init
             goal7 = matrix_to_array(goal)
             try:
@@ -279,32 +269,18 @@ class _Attempt:
                 if not f.goal_infeasible or k == len(candidates) - 1:
                     raise
         self.chosen[-1] = j
-        self.close_ee = None
         if hasattr(self.env, "replay_skill"):
-            self.remote_skill(skill, j, T_W_O, goal7, C)
-        else:
-            cmds = plan_replay(seg, T_W_O, self.obs.ee_matrix(), self.cfg.augment, self.cfg.augmentation, C)
-            t = time.perf_counter()
-            try:
-                for T, g, rec in zip(cmds.targets, cmds.gripper, cmds.recovery):
-                    sigma = 0.0 if rec else self.cfg.action_noise  # recovery poses are planned, not demonstrated
-                    self._step(T, float(g), sigma, StepLabel(False, skill.index, j, goal7, bool(rec)))
-            finally:
-                self._timed("skill", t)
-        if self.gripper <= 0:
-            self.in_hand = {}
-        elif self.close_ee is not None:  # this skill grasped its object: where it sits in the hand
-            self.in_hand = {skill.object_id: object_in_hand(self.close_ee, T_W_O)}
+            return self.remote_skill(skill, j, T_W_O, goal7)
+        cmds = plan_replay(seg, T_W_O, self.obs.ee_matrix(), self.cfg.augment, self.cfg.augmentation)
+        t = time.perf_counter()
+        try:
+            for T, g, rec in zip(cmds.targets, cmds.gripper, cmds.recovery):
+                sigma = 0.0 if rec else self.cfg.action_noise  # recovery poses are planned, not demonstrated
+                self._step(T, float(g), sigma, StepLabel(False, skill.index, j, goal7, bool(rec)))
+        finally:
+            self._timed("skill", t)
 
-    def in_hand_correction(self, skill: SkillLike, j: int) -> np.ndarray:
-        """The EE-frame factor that makes a transfer skill carry its object as demo j did (grasp.py)."""
-        held = getattr(skill, "attached_object", None)
-        if not self.cfg.in_hand_correction or skill.mode != "transfer" or held not in self.in_hand:
-            return np.eye(4)
-        return in_hand_correction(demo_object_in_hand(self.demos[j], self.task, skill.index), self.in_hand[held])
-
-    def remote_skill(self, skill: SkillLike, j: int, T_W_O: np.ndarray, goal7: np.ndarray,
-                     correction: np.ndarray) -> None:
+    def remote_skill(self, skill: SkillLike, j: int, T_W_O: np.ndarray, goal7: np.ndarray) -> None:
         """Graph mode: the skill_replay node streams the same plan_replay + make_action steps and
         returns what it executed; they are recorded exactly as local steps would be."""
         self._budget()
@@ -312,7 +288,7 @@ class _Attempt:
         seed = int(self.rng_noise.integers(2**63 - 1))
         try:
             steps, ok, reason, message = self.env.replay_skill(skill.index, j, T_W_O, self.cfg.action_noise,
-                                                               self.cfg.augment, seed, correction)
+                                                               self.cfg.augment, seed)
         except (SkillGenError, TimeoutError) as e:
             raise _Fail(FailureReason.TIMEOUT if getattr(e, "reason", "") == "TIMEOUT" else FailureReason.SKILL_FAILED,
                         f"skill {skill.index} replay: {e}") from e
@@ -325,8 +301,6 @@ class _Attempt:
             a = steps["actions"][k]
             self.rec.add(obs, a, steps["actions_abs"][k][:7], float(steps["actions_abs"][k][7]),
                          StepLabel(False, skill.index, j, goal7, bool(steps["recovery"][k])))
-            if steps["actions_abs"][k][7] > 0 >= self.gripper:
-                self.close_ee = obs.ee_matrix()
             self.gripper = float(steps["actions_abs"][k][7])
         if len(steps["actions"]):  # the last pose sent (with its noise): the release's drift reference
             self.last_target = Pose.from_array(steps["actions_abs"][-1][:7]).matrix()

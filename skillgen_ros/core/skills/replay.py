@@ -1,7 +1,7 @@
 """What a skill replay streams: the transformed segment, optionally after a recovery segment.
 
 Shared by the skill_replay node and in-process generation so both replay identically:
-targets T_W^{A_t'} = T_W^{O'} T_O^{A_t} (times a transfer skill's in-hand correction); with initiation augmentation the robot starts at a
+targets T_W^{A_t'} = T_W^{O'} T_O^{A_t}; with initiation augmentation the robot starts at a
 perturbed pose, so a recovery segment from the current end-effector pose back to the segment's
 initiation pose T_W^{E_0'} goes first (gripper held at the segment's first command, no noise).
 """
@@ -24,14 +24,10 @@ class ReplayPlan:
 
 
 def plan_replay(segment: SkillSegment, T_W_O: np.ndarray, current_ee: np.ndarray | None = None,
-                recovery: bool = False, config: AugmentationConfig = AugmentationConfig(),
-                correction: np.ndarray | None = None) -> ReplayPlan:
-    """correction: an EE-frame transform C right-multiplying every target and the initiation pose
-    (a transfer skill's in-hand correction, core/generation/grasp.py); None = the identity."""
-    C = np.eye(4) if correction is None else np.asarray(correction, float)
-    targets = segment.actions_in_world(T_W_O) @ C
+                recovery: bool = False, config: AugmentationConfig = AugmentationConfig()) -> ReplayPlan:
+    targets = segment.actions_in_world(T_W_O)
     gripper = np.asarray(segment.gripper, float)
-    init = segment.initiation_in_world(T_W_O) @ C
+    init = segment.initiation_in_world(T_W_O)
     rec = np.zeros(len(targets), bool)
     if recovery and current_ee is not None:
         back = recovery_segment(np.asarray(current_ee, float), init, config)

@@ -20,7 +20,7 @@ simplifier, so a plan depends on (seed, k) and its inputs only, not on what the 
 before (a run sharded across processes plans what the unsharded run plans). The goal IK is
 budgeted in iterations (`ik_iterations`; `ik_timeout` is only a safety cap), so it finds the same
 solutions on a loaded or slower machine. RRT-Connect is time-budgeted: a search cut by its timeout
-still depends on CPU speed (in practice the searches finish far inside it).
+still depends on CPU speed.
 """
 from __future__ import annotations
 

@@ -99,17 +99,18 @@ class PlannerNode(Node):
         p = {n: self.get_parameter(n).value for n in PARAMS}
         if p["velocity_scale"] <= 0 or p["velocity_scale"] > 1 or p["dt"] <= 0:
             raise ParameterError("velocity_scale must be in (0, 1] and dt > 0")
-        if p["ik_iterations"] < 1 or p["ik_timeout"] <= 0:
-            raise ParameterError("ik_iterations must be >= 1 and ik_timeout > 0")
         self.p = p
         seed = int(p["seed"]) or None
         self.kin = PandaKinematics()
         self.cm = CollisionModel(self.kin, margin=p["box_margin"], cloud_margin=p["cloud_margin"])
         self.ik = IKSolver(self.kin, rng=seed)
-        self.planner = MotionPlanner(self.kin, self.ik, self.cm, p["retreat_distance"],
-                                     p["approach_distance"], ik_timeout=p["ik_timeout"],
-                                     ik_iterations=p["ik_iterations"],
-                                     velocity_scale=p["velocity_scale"], dt=p["dt"], seed=seed)
+        try:  # MotionPlanner validates its own settings (the IK budget)
+            self.planner = MotionPlanner(self.kin, self.ik, self.cm, p["retreat_distance"],
+                                         p["approach_distance"], ik_timeout=p["ik_timeout"],
+                                         ik_iterations=p["ik_iterations"],
+                                         velocity_scale=p["velocity_scale"], dt=p["dt"], seed=seed)
+        except InvalidInputError as e:
+            raise ParameterError(str(e.args[0])) from None
         self._boxes: dict[str, Box] = {}
         # Readers are made on the first request that needs them: a request with start_positions and
         # SOURCE_SCENE (datagen's) reads nothing, and a reader the driver must deliver every period

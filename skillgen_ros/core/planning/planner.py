@@ -354,7 +354,7 @@ class MotionPlanner:
                 line = cartesian_line(self.kin, self.ik, q, -self.retreat_distance)
             except CartesianPathError:
                 return True
-            if collides(line[-1:])[0] or not self._segment_free(line, edge_free, allow):
+            if not self._ends_clear(line, edge_free, allow, collides):
                 return True
             lines[q.tobytes()] = line
             return False
@@ -368,12 +368,14 @@ class MotionPlanner:
     def _segment_free(path: np.ndarray, edge_free, allow) -> bool:
         return all(edge_free(a, b, allow) for a, b in zip(path[:-1], path[1:]))
 
+    def _ends_clear(self, path: np.ndarray, edge_free, allow, collides) -> bool:
+        """A retreat that may pass through the start's allowed contacts but ends free of all."""
+        return not collides(path[-1:])[0] and self._segment_free(path, edge_free, allow)
+
     def _partial_retreat(self, q0, edge_free, allow, collides) -> np.ndarray | None:
         """The retreat line as far as IK follows it, if that ends clear of every contact."""
         try:
             path = cartesian_line(self.kin, self.ik, q0, -self.retreat_distance, partial=True)
         except CartesianPathError:
             return None
-        if len(path) < 2 or collides(path[-1:])[0] or not self._segment_free(path, edge_free, allow):
-            return None
-        return path
+        return path if len(path) >= 2 and self._ends_clear(path, edge_free, allow, collides) else None

@@ -67,6 +67,36 @@ def test_state_round_trip(world):
         world.set_state(s[:-1])
 
 
+def test_a_restored_state_keeps_the_hand_grasping():
+    """The state carries the finger motors' mode: restored mid-grasp into a world whose hand was
+    since opened, the fingers keep closing at the grasp's force, as the original run did."""
+    w = SimWorld()
+    try:
+        w.reset("Square", "D0", 0)
+        ee = w.ee_pose()
+        for _ in range(2):
+            w.step(ee, 1.0)  # closing on nothing
+        s = w.get_state()
+        for _ in range(6):
+            w.step(ee, 1.0)
+        closed = w.get_state()
+        w.reset("Square", "D0", 0)
+        w.step(ee, -1.0)  # a different hand mode: opening
+        w.set_state(s)
+        assert w.gripper_command == 1.0
+        for _ in range(6):
+            w.idle()
+        np.testing.assert_allclose(w.finger_positions(), closed[8:10], atol=2e-4)
+        assert w.gripper_width() < 0.01
+        bad = s.copy()
+        bad[-4] = -1.0  # a negative finger target
+        with pytest.raises(InvalidInputError):
+            w.set_state(bad)
+        np.testing.assert_allclose(w.finger_positions(), closed[8:10], atol=2e-4)  # nothing moved
+    finally:
+        w.close()
+
+
 def test_bad_osc_targets_rejected_robot_stays(world):
     world.reset("Square", "D0", 0)
     ee0, q0 = world.ee_pose(), world.joint_positions()

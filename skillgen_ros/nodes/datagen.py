@@ -110,8 +110,16 @@ class DatagenNode(Node):
         return load_source_demos(paths, get_task(req.task))
 
     def _on_goal(self, goal):
-        """Busy: reject. An empty task is a readiness probe (skillgen_ros/answered.py): reject, run nothing."""
-        return GoalResponse.REJECT if self._busy.locked() or not goal.task else GoalResponse.ACCEPT
+        """Busy: reject. An empty task is a readiness probe (skillgen_ros/answered.py): reject, run
+        nothing. A rejection carries no reason over the action protocol, so the log says which."""
+        if not goal.task:
+            self.get_logger().info("generate goal with an empty task rejected (clients probe readiness this way; "
+                                   "name a task to run one)")
+            return GoalResponse.REJECT
+        if self._busy.locked():
+            self.get_logger().warning("generate goal rejected: a generation run is in progress (BUSY)")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
 
     def _execute(self, goal_handle):
         with self._busy:

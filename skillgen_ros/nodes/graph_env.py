@@ -160,11 +160,13 @@ class RosGraphEnv:
 
     def _take_wrench(self, joints) -> np.ndarray | None:
         """The driver's ee_wrench of the joint_states' period (None if it publishes none)."""
-        if joints is None or self._wrench.snapshot()[1] == 0:
+        if joints is None:
             return None
         t = joints.header.stamp
-        m = self._wrench.wait_for(lambda w: w is not None and (w.header.stamp.sec, w.header.stamp.nanosec)
-                                  >= (t.sec, t.nanosec), 0.1)
+        wrench = self._wrench
+        # one pull: a driver that has never published a wrench is answered at once, not after 0.1 s
+        m = wrench.wait_for(lambda w: wrench.count == 0 or (w.header.stamp.sec, w.header.stamp.nanosec)
+                            >= (t.sec, t.nanosec), 0.1)
         return None if m is None else convert.wrench_from_msg(m)
 
     def observe(self) -> Observation:

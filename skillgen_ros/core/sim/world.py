@@ -22,16 +22,16 @@ from ..tasks.objects import center_of_mass
 from ..tasks.spec import ObjectSpec
 from . import camera as cam
 from .assets import lowpoly_panda_urdf
-from .commands import (Contact, JointTrajectory, TrajectoryCode, TrajectoryResult, validate_gripper,  # noqa: F401
+from .commands import (Contact, JointTrajectory, TrajectoryCode, TrajectoryResult,  # noqa: F401
                        validate_osc_target, validate_trajectory)
 from .contacts import hand_wrench
 from .control import JointGains, OscGains, TrajectorySampler, joint_torques, osc_torques
+from .hand import STATE_SIZE as HAND_STATE_SIZE
+from .hand import FrankaHand
 
 TABLE_HALF = (0.75, 0.8, 0.025)
 TABLE_CENTER = (0.35, 0.0, TABLE_Z - 0.025)
 DEFAULT_GOAL_TOLERANCE = 0.02  # rad
-GRASP_MIN_WIDTH = 0.002        # fingers closed on nothing stop below this width
-OPEN_REACHED = 0.001           # an opening move within this of its width has arrived
 
 
 @dataclass
@@ -73,8 +73,7 @@ class SimWorld:
         self.cfg = cfg
         if self.cfg.physics_hz % self.cfg.control_hz:
             raise InvalidInputError("physics_hz must be an integer multiple of control_hz")
-        if not (0.0 <= self.cfg.gripper_hold_force <= self.cfg.gripper_force < np.inf):
-            raise InvalidInputError("need 0 <= gripper_hold_force <= gripper_force, both finite")
+        FrankaHand(self.cfg.gripper_force, self.cfg.gripper_hold_force)  # validates the forces before building
         self.substeps = int(round(self.cfg.physics_hz / self.cfg.control_hz))
         self.dt = 1.0 / self.cfg.physics_hz
         self.p = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
@@ -129,11 +128,8 @@ class SimWorld:
             self._com[o.id] = center_of_mass(o.parts) if o.mass > 0 else np.zeros(3)
             self.bodies[o.id] = self._spawn(o, poses[o.id])
         self.body_names = {v: k for k, v in self.bodies.items()} | {self.table: "table"}
-        self.gripper_command = -1.0
-        self._finger_target = GRIPPER_MAX_WIDTH / 2
-        self._commanded_force = self.cfg.gripper_force
-        self._finger_force, self._opening = self.cfg.gripper_hold_force, False  # open and arrived
-        self._apply_gripper()
+        self.hand = FrankaHand(self.cfg.gripper_force, self.cfg.gripper_hold_force)
+        self.hand.apply(p, self.robot, self.fingers)
         self._hold_q = np.array(Q_HOME)
         self._osc_target = self.ee_pose()
         self._mode = "joint_hold"
@@ -189,9 +185,14 @@ class SimWorld:
     def gripper_width(self) -> float:
         return float(np.sum(self.finger_positions()))
 
+    @property
+    def gripper_command(self) -> float:
+        """The last gripper command, -1 open .. +1 closed."""
+        return self.hand.command
+
     def is_grasping(self) -> bool:
         """Fingers commanded closed but stalled on something before fully closing."""
-        return bool(self._finger_target < GRIPPER_MAX_WIDTH / 4 and self.gripper_width() > GRASP_MIN_WIDTH)
+        return self.hand.is_grasping(self.gripper_width())
 
     def _link_pose(self, link: int) -> Pose:
         s = self.p.getLinkState(self.robot, link, computeForwardKinematics=True)
@@ -221,22 +222,27 @@ class SimWorld:
         return self.scene is not None and self.task.is_success(self.object_poses())
 
     def get_state(self) -> np.ndarray:
-        """Flat state: [time, q(9), qd(9), per object (scene order): pos 3, quat 4, lin vel 3, ang vel 3].
+        """Flat state: [time, q(9), qd(9), per object (scene order): pos 3, quat 4, lin vel 3, ang vel 3,
+        gripper mode: command, finger target, finger force, commanded force, opening].
 
-        Object pose = object frame; velocities are those of the centre of mass (pybullet's base)."""
+        Object pose = object frame; velocities are those of the centre of mass (pybullet's base). The
+        gripper mode is what the finger motors are doing (a grasp holds 20 N, an arrived opening
+        move 2 N), so a restored state continues as the original would have."""
         q, qd = self._joint_state()
         parts = [np.array([self.time]), q, qd]
         for oid, b in self.bodies.items():
             lin, ang = self.p.getBaseVelocity(b)
             parts.append(np.concatenate([self._object_pose(oid).as_array(), lin, ang]))
+        parts.append(self.hand.state())
         return np.concatenate(parts)
 
     def set_state(self, state) -> None:
         """Restore a get_state() vector (same scene); the controller then holds the restored pose."""
         s = np.asarray(state, float)
-        n = 1 + 18 + 13 * len(self.bodies)
+        n = 1 + 18 + 13 * len(self.bodies) + HAND_STATE_SIZE
         if s.shape != (n,) or not np.all(np.isfinite(s)):
             raise InvalidInputError(f"state must be {n} finite values for this scene, got shape {s.shape}")
+        self.hand.set_state(s[-HAND_STATE_SIZE:])  # validates before anything moves
         self.time = float(s[0])
         for k, j in enumerate(self.movable):
             self.p.resetJointState(self.robot, j, s[1 + k], s[10 + k])
@@ -244,6 +250,7 @@ class SimWorld:
             o = s[19 + 13 * k: 32 + 13 * k]
             self._set_object_pose(oid, Pose(o[:3], o[3:7] / np.linalg.norm(o[3:7])))
             self.p.resetBaseVelocity(b, o[7:10].tolist(), o[10:13].tolist())
+        self.hand.apply(self.p, self.robot, self.fingers)
         self._hold_q = s[1:8].copy()
         self._osc_target = self.ee_pose()
         self._mode, self._traj = "joint_hold", None
@@ -273,42 +280,22 @@ class SimWorld:
             self._traj.t += self.dt
         else:
             tau = joint_torques(self._hold_q, np.zeros(7), np.zeros(7), q, qd, M, h, self.cfg.joint)
-        if self._opening and q9[7] + q9[8] >= 2.0 * self._finger_target - OPEN_REACHED:
-            self._opening, self._finger_force = False, min(self._finger_force, self.cfg.gripper_hold_force)
-            self._apply_gripper()
+        if self.hand.arrived(q9[7] + q9[8]):
+            self.hand.apply(self.p, self.robot, self.fingers)
         self.p.setJointMotorControlArray(self.robot, self.arm, self.p.TORQUE_CONTROL, forces=tau.tolist())
         self.p.stepSimulation()
         self.time += self.dt
 
-    def _apply_gripper(self) -> None:
-        self.p.setJointMotorControlArray(self.robot, self.fingers, self.p.POSITION_CONTROL,
-                                         targetPositions=[self._finger_target] * 2,
-                                         forces=[self._finger_force] * 2, positionGains=[0.05] * 2)
-
-    def _command_fingers(self, half_width: float, force: float) -> None:
-        """Closing is a grasp: the force stays on. Opening is a move, as on the Franka hand: once the
-        fingers reach the width the motor drops to gripper_hold_force, so an open finger that an
-        object pushes on yields instead of pressing it at full force (a 20 N open finger dragged
-        nuts up their pegs on the retreat). A repeated command does not restart the move."""
-        if half_width == self._finger_target and force == self._commanded_force:
-            return
-        self._opening = half_width * 2.0 > self.gripper_width() + OPEN_REACHED
-        self._finger_target, self._finger_force, self._commanded_force = half_width, force, force
-        self._apply_gripper()
-
     def gripper(self, command: float) -> None:
-        """-1 open .. +1 closed (robosuite convention), force-limited by gripper_force."""
-        g = validate_gripper(command)
-        self.gripper_command = g
-        self._command_fingers((1.0 - g) / 2.0 * GRIPPER_MAX_WIDTH / 2.0, self.cfg.gripper_force)
+        """-1 open .. +1 closed (robosuite convention), force-limited by gripper_force (hand.py: a
+        grasp keeps its force, an opening move drops to gripper_hold_force once it arrives)."""
+        if self.hand.close_open(command, self.gripper_width()):
+            self.hand.apply(self.p, self.robot, self.fingers)
 
     def gripper_to(self, width: float, max_effort: float) -> None:
         """Move the fingers to opening `width` (m) with at most `max_effort` N per finger."""
-        if not (np.isfinite(width) and np.isfinite(max_effort)) or max_effort <= 0:
-            raise InvalidInputError(f"gripper width {width} / effort {max_effort} invalid")
-        half = float(np.clip(width, 0.0, GRIPPER_MAX_WIDTH)) / 2.0
-        self.gripper_command = 1.0 - 2.0 * half * 2.0 / GRIPPER_MAX_WIDTH
-        self._command_fingers(half, float(max_effort))
+        if self.hand.move_to(width, max_effort, self.gripper_width()):
+            self.hand.apply(self.p, self.robot, self.fingers)
 
     def step(self, osc_target: Pose, gripper: float | None = None) -> None:
         """One control period tracking an absolute EE target with the OSC (validated; may raise)."""

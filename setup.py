@@ -10,19 +10,20 @@ from setuptools import find_packages, setup
 
 PACKAGE = "skillgen_ros"
 
-# One place lists the executables: node name -> module:function.
+# One place lists the executables: name -> module:function. Nodes start through nodes/entry.py,
+# which makes Ctrl-C quiet before the node's slow imports.
 EXECUTABLES = {
-    "sim_driver": "skillgen_ros.nodes.sim_driver:main",
-    "mock_driver": "skillgen_ros.nodes.mock_driver:main",
-    "perception": "skillgen_ros.nodes.perception:main",
-    "planner": "skillgen_ros.nodes.planner:main",
-    "skill_replay": "skillgen_ros.nodes.skill_replay:main",
-    "datagen": "skillgen_ros.nodes.datagen:main",
-    "hsp": "skillgen_ros.nodes.hsp:main",
-    "recorder": "skillgen_ros.nodes.recorder:main",
-    "player": "skillgen_ros.nodes.player:main",
-    "teleop": "skillgen_ros.nodes.teleop:main",
-    "container": "skillgen_ros.nodes.container:main",
+    "sim_driver": "skillgen_ros.nodes.entry:sim_driver",
+    "mock_driver": "skillgen_ros.nodes.entry:mock_driver",
+    "perception": "skillgen_ros.nodes.entry:perception",
+    "planner": "skillgen_ros.nodes.entry:planner",
+    "skill_replay": "skillgen_ros.nodes.entry:skill_replay",
+    "datagen": "skillgen_ros.nodes.entry:datagen",
+    "hsp": "skillgen_ros.nodes.entry:hsp",
+    "recorder": "skillgen_ros.nodes.entry:recorder",
+    "player": "skillgen_ros.nodes.entry:player",
+    "teleop": "skillgen_ros.nodes.entry:teleop",
+    "container": "skillgen_ros.nodes.entry:container",
     "skillgen": "skillgen_ros.cli.main:main",
 }
 

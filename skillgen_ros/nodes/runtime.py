@@ -24,6 +24,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 
 from skillgen_ros.core.errors import SkillGenError
+from skillgen_ros.nodes.entry import quiet_stop_signals
 
 
 def _fail(name: str, reason: str, msg: str) -> int:
@@ -35,11 +36,9 @@ def _quiet_stop_signals() -> threading.Event:
     """SIGINT/SIGTERM set an event instead of raising KeyboardInterrupt. Installed before
     rclpy.init, whose handler shuts the context down (the executor's spin returns) and then calls
     this one. A KeyboardInterrupt can land anywhere, inside rclpy's executor too: it once left a node
-    handle marked in use, and destroy_node then waited forever (a launch Ctrl-C test hung in CI)."""
-    stop = threading.Event()
-    for s in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(s, lambda _signum, _frame: stop.set())
-    return stop
+    handle marked in use, and destroy_node then waited forever (a launch Ctrl-C test hung in CI).
+    The event is entry.STOP, which the console script set up before the node's imports."""
+    return quiet_stop_signals()
 
 
 def run_node(factory: Callable[[], "rclpy.node.Node"], args=None, threads: int = 4, name: str = "",
@@ -59,6 +58,8 @@ def run_nodes(factories: list[Callable[[], "rclpy.node.Node"]], args=None, threa
     args = sys.argv if args is None else args
     faulthandler.register(signal.SIGUSR1, all_threads=True)  # `skillgen launch` asks a hung node for its stacks
     stop = _quiet_stop_signals()
+    if stop.is_set():  # Ctrl-C while the node's modules were loading (entry.py)
+        return 0
     try:
         rclpy.init(args=args)
     except rclpy._rclpy_pybind11.RCLError as e:  # bad --ros-args / unparsable params file

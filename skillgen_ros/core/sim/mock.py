@@ -1,10 +1,13 @@
 """MockWorld: a kinematic stand-in for SimWorld with the same driver-facing API, no physics.
 
-The end effector is wherever the last OSC target put it, trajectories complete instantly (joint
-positions jump to the last point; the EE pose is left unchanged, as there is no kinematics
-model here), objects stay where reset put them, and "cameras" return mesh-surface points of
-the objects plus a table patch, without occlusion. It imports no pybullet, so the mock driver
-node starts in well under a second.
+An OSC target is reached in one period: the joints jump to the local IK solution from where they
+are (Newton from the current q, the planner's solver), so joint_states and the EE pose always
+agree, as they do on the robot -- a node that takes the hand's pose from FK of joint_states (the
+skill_replay node) sees the hand move. A target the arm cannot reach from there leaves it where
+it is, as a real OSC stalls. Trajectories complete instantly (the joints jump to the last point,
+the EE follows by FK), objects stay where reset put them, and "cameras" return mesh-surface
+points of the objects plus a table patch, without occlusion. It imports no pybullet, and the
+kinematics (pinocchio, numba) load on the first motion, so the node starts in under a second.
 """
 from __future__ import annotations
 
@@ -54,6 +57,16 @@ class MockWorld:
         self.gripper_command = -1.0
         self._poses: dict[str, Pose] = {}
         self._points = np.zeros((0, 3))
+        self._kin = self._ik = None  # loaded on the first motion
+
+    def _kinematics(self):
+        if self._ik is None:
+            from ..planning.ik import IKSolver
+            from ..planning.kinematics import PandaKinematics
+
+            self._kin = PandaKinematics()
+            self._ik = IKSolver(self._kin, rng=0)
+        return self._kin, self._ik
 
     def reset(self, task: str, variant: str, seed: int) -> SceneDescription:
         spec = get_task(task)
@@ -114,7 +127,10 @@ class MockWorld:
         target = validate_osc_target(osc_target.position, osc_target.quaternion)
         if gripper is not None:
             self.gripper(gripper)
-        self._ee = target
+        kin, ik = self._kinematics()
+        q = ik.solve_local(target.matrix(), self._q, iters=100)
+        if q is not None:  # unreachable from here: the arm stays put
+            self._q, self._ee = q, Pose.from_matrix(kin.fk(q))
         self.time += 1.0 / self.control_hz
 
     def idle(self, periods: int = 1) -> None:
@@ -130,6 +146,7 @@ class MockWorld:
         if traj is None:
             raise InvalidInputError("no active trajectory", "NO_TRAJECTORY")
         self._q = traj.positions[-1].copy()
+        self._ee = Pose.from_matrix(self._kinematics()[0].fk(self._q))
         return 1.0, self._q.copy(), TrajectoryResult(TrajectoryCode.SUCCESSFUL, "goal reached (kinematic)", 0.0)
 
     # cameras ----------------------------------------------------------

@@ -197,7 +197,7 @@ def test_a_seeded_request_plans_the_same_path_whatever_ran_before(ros_domain, st
         assert planner.proc.poll() is None
 
 
-@pytest.mark.parametrize("param", ["ik_iterations:=0", "ik_timeout:=0.0"])
+@pytest.mark.parametrize("param", ["ik_iterations:=0", "ik_timeout:=0.0", "rrt_iterations:=0"])
 def test_a_bad_ik_budget_parameter_exits_with_a_reason(start_node, param):
     proc = start_node("planner", "--ros-args", "-p", param)
     assert proc.proc.wait(timeout=60) == 2

@@ -96,6 +96,35 @@ def test_rrt_plans_are_per_call_whatever_the_process_planned_before(world):
     np.testing.assert_array_equal(again.joint_path, fresh.joint_path)
 
 
+def test_an_rrt_iteration_budget_ends_the_same_search_however_slow_the_machine(world):
+    """RRT-Connect budgeted in iterations: a search slowed down (a checker that sleeps, as a loaded
+    CPU would) grows the same trees to the same path, and a budget too small for the wall ends
+    the search after it, with the clock far from the timeout."""
+    import time
+
+    from skillgen_ros.core.planning.rrt import JointSpaceRRT, RRTStatus
+
+    kin, start = world
+    goal = IKSolver(kin, rng=0).solve(Pose([0.5, 0.25, 0.15], DOWN).matrix(), seed_q=Q_HOME,
+                                      timeout=0.5).solutions[0]
+    cm = CollisionModel(kin)
+    cm.set_boxes([WALL])
+
+    def slow(q0, q1):
+        time.sleep(0.002)
+        return cm.check_motion(q0, q1)
+
+    rrt = JointSpaceRRT(kin.lower, kin.upper)
+    runs = [rrt.plan(start, goal, cm.in_collision, check, 30.0, seed=4, max_iterations=100)
+            for check in (cm.check_motion, slow)]
+    assert all(r.status is RRTStatus.SOLVED for r in runs) and runs[0].iterations > 2
+    assert runs[1].plan_time > 1.5 * runs[0].plan_time
+    assert runs[0].iterations == runs[1].iterations
+    np.testing.assert_array_equal(runs[0].path, runs[1].path)
+    cut = rrt.plan(start, goal, cm.in_collision, cm.check_motion, 30.0, seed=4, max_iterations=2)
+    assert cut.status is RRTStatus.TIMEOUT and cut.iterations == 3 and cut.plan_time < 5.0
+
+
 def test_a_plan_seed_draws_as_the_kth_plan_after_reseed_and_leaves_the_count(world):
     """plan(seed=(s, k)) (the planner node's seeded requests) plans what the k-th plan after
     reseed(s) plans, and the planner's own count goes on as if that plan had not happened."""

@@ -67,6 +67,7 @@ PARAMS = {  # name: (default, description)
     "default_timeout": (2.0, "planning budget (s) when the request's timeout is <= 0"),
     "ik_iterations": (2000, "goal IK budget in batch iterations (about 50 ms; machine-independent)"),
     "ik_timeout": (0.5, "wall-time cap (s) on the goal IK (a safety net; the iterations bound it)"),
+    "rrt_iterations": (100, "RRT-Connect budget in search iterations (machine-independent; the timeout caps it)"),
     "retreat_distance": (0.05, "retreat along the gripper's -z (m)"),
     "approach_distance": (0.05, "approach along the gripper's +z (m)"),
     "box_margin": (0.005, "safety margin against scene boxes (m)"),
@@ -107,7 +108,7 @@ class PlannerNode(Node):
         try:  # MotionPlanner validates its own settings (the IK budget)
             self.planner = MotionPlanner(self.kin, self.ik, self.cm, p["retreat_distance"],
                                          p["approach_distance"], ik_timeout=p["ik_timeout"],
-                                         ik_iterations=p["ik_iterations"],
+                                         ik_iterations=p["ik_iterations"], rrt_iterations=p["rrt_iterations"],
                                          velocity_scale=p["velocity_scale"], dt=p["dt"], seed=seed)
         except InvalidInputError as e:
             raise ParameterError(str(e.args[0])) from None

@@ -18,9 +18,9 @@ calls since `reseed(seed)`. RRT-Connect is OMPL's: before each search OMPL's pro
 generator restarts from SeedSequence((seed, k, 1)) and the search gets a fresh sampler and path
 simplifier, so a plan depends on (seed, k) and its inputs only, not on what the process planned
 before (a run sharded across processes plans what the unsharded run plans). The goal IK is
-budgeted in iterations (`ik_iterations`; `ik_timeout` is only a safety cap), so it finds the same
-solutions on a loaded or slower machine. RRT-Connect is time-budgeted: a search cut by its timeout
-still depends on CPU speed.
+budgeted in iterations (`ik_iterations`; `ik_timeout` is only a safety cap), and so is RRT-Connect
+(`rrt_iterations`; the request's timeout is the cap), so a plan is the same on a loaded or slower
+machine unless the cap cuts it first.
 """
 from __future__ import annotations
 
@@ -93,17 +93,23 @@ class MotionPlanner:
     def __init__(self, kin: PandaKinematics, ik: IKSolver, collision: CollisionModel,
                  retreat_distance: float = 0.05, approach_distance: float = 0.05,
                  dt: float = 0.01, ik_timeout: float = 0.5, ik_iterations: int = 2000,
-                 ik_solutions: int = 4, velocity_scale: float = 1.0, seed: int | None = None):
+                 ik_solutions: int = 4, velocity_scale: float = 1.0, seed: int | None = None,
+                 rrt_iterations: int = 100):
         """ik_iterations: the goal IK's budget in batch iterations (2000 take about 50 ms on one
-        2020s core); ik_timeout only caps its wall time, so plans do not depend on CPU load."""
-        if ik_iterations < 1 or ik_timeout <= 0:
-            raise InvalidInputError(f"ik_iterations must be >= 1 and ik_timeout > 0, got {ik_iterations}, {ik_timeout}")
+        2020s core); ik_timeout only caps its wall time, so plans do not depend on CPU load.
+        rrt_iterations: RRT-Connect's budget in search iterations (1-12 ms each here; the searches
+        of the datagen and planning benches and the tests need at most 19), capped by the request's
+        timeout in the same way."""
+        if ik_iterations < 1 or ik_timeout <= 0 or rrt_iterations < 1:
+            raise InvalidInputError(f"ik_iterations and rrt_iterations must be >= 1 and ik_timeout > 0, got "
+                                    f"{ik_iterations}, {rrt_iterations}, {ik_timeout}")
         self.kin, self.ik, self.cm = kin, ik, collision
         self.retreat_distance = float(retreat_distance)
         self.approach_distance = float(approach_distance)
         self.dt = float(dt)
         self.ik_timeout = float(ik_timeout)
         self.ik_iterations = int(ik_iterations)
+        self.rrt_iterations = int(rrt_iterations)
         self.ik_solutions = int(ik_solutions)
         self.velocity_scale = float(velocity_scale)
         self.seed: int | None = None
@@ -292,10 +298,13 @@ class MotionPlanner:
         if collides(q_a[None])[0]:
             return fail(PlanStatus.START_IN_COLLISION, "the retreat ends in collision")
         remaining = max(1e-3, timeout - (time.perf_counter() - t_all))
-        res = self.rrt.plan(q_a, q_b, collides, edge_free, remaining, seed=self._rrt_seed)
+        res = self.rrt.plan(q_a, q_b, collides, edge_free, remaining, seed=self._rrt_seed,
+                            max_iterations=self.rrt_iterations)
         timings[mode.value] = time.perf_counter() - t
         if res.status is not RRTStatus.SOLVED:
-            return fail(PlanStatus.PLAN_TIMEOUT, f"{mode.value}: {res.status.value} after {remaining:.2f} s")
+            cut = (f"its {self.rrt_iterations} iterations" if res.iterations > self.rrt_iterations
+                   else f"the {remaining:.2f} s left of the timeout")
+            return fail(PlanStatus.PLAN_TIMEOUT, f"{mode.value}: no path within {cut}")
 
         path = np.vstack([retreat_path, res.path[1:], approach_path[1:]])
         n_r, n_t = len(retreat_path), len(res.path)

@@ -58,6 +58,7 @@ class RRTResult:
     path: np.ndarray  # (K,7); empty unless SOLVED
     plan_time: float
     simplify_time: float
+    iterations: int = 0  # RRT-Connect loop iterations the search ran (0: no tree was grown)
 
 
 class _EdgeValidator(ob.MotionValidator):
@@ -128,9 +129,13 @@ class JointSpaceRRT:
 
     def plan(self, start, goal, in_collision: Callable[[np.ndarray], np.ndarray],
              check_motion: Callable[[np.ndarray, np.ndarray], bool], timeout: float,
-             simplify: bool = True, seed: int | None = None) -> RRTResult:
+             simplify: bool = True, seed: int | None = None, max_iterations: int | None = None) -> RRTResult:
         """in_collision(Q (N,7)) -> bool (N,) checks states; check_motion(q0, q1) -> bool checks a
-        whole edge in one vectorized call (CollisionModel.check_motion, continuous)."""
+        whole edge in one vectorized call (CollisionModel.check_motion, continuous).
+
+        max_iterations: the search's budget in RRT-Connect iterations (OMPL evaluates the
+        termination condition once per iteration). With a seed, a search so budgeted finds the
+        same path on a loaded or slower machine; `timeout` then only caps its wall time."""
         self.in_collision, self.check_motion = in_collision, check_motion
         start, goal = np.asarray(start, float), np.asarray(goal, float)
         if self.in_collision(start[None])[0]:
@@ -152,10 +157,18 @@ class JointSpaceRRT:
             self.ss.setup()
             seed_ompl(seed)
             self.simplifier = og.PathSimplifier(self.si)
-        solved = self.ss.solve(float(timeout))
+        count = [0]
+        end = time.perf_counter() + float(timeout)
+        budget = float("inf") if max_iterations is None else int(max_iterations)
+
+        def stop() -> bool:
+            count[0] += 1
+            return count[0] > budget or time.perf_counter() > end
+
+        solved = self.ss.solve(ob.PlannerTerminationCondition(stop))
         plan_time = time.perf_counter() - t0
         if not solved or not self.ss.haveExactSolutionPath():
-            return RRTResult(RRTStatus.TIMEOUT, np.empty((0, 7)), plan_time, 0.0)
+            return RRTResult(RRTStatus.TIMEOUT, np.empty((0, 7)), plan_time, 0.0, count[0])
         t1 = time.perf_counter()
         path = self.ss.getSolutionPath()
         if simplify:
@@ -163,4 +176,4 @@ class JointSpaceRRT:
             self.simplifier.ropeShortcutPath(path)
         P = np.array([[path.getState(k)[i] for i in range(7)] for k in range(path.getStateCount())])
         P = self._shortcut(P)
-        return RRTResult(RRTStatus.SOLVED, P, plan_time, time.perf_counter() - t1)
+        return RRTResult(RRTStatus.SOLVED, P, plan_time, time.perf_counter() - t1, count[0])

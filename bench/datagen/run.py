@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import sys
 import tempfile
 import time
@@ -37,6 +36,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+from bench.machine import machine_info
 
 CELLS_FULL = {
     "Square": ["D0", "D1", "D2", "clutter"],
@@ -201,7 +201,7 @@ def main(argv=None) -> int:
     extra = {k: f(n, a.seed, a.perception) for k, f in EXTRAS.items() if not (k == "graph_overhead" and a.skip_graph)}
     summary = _summarize(cells)
     out = {"benchmark": "datagen", "rerun": " ".join(["python", "bench/datagen/run.py", *sys.argv[1:]]),
-           "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform()},
+           "machine": machine_info(),
            "attempts_per_cell": n, "seed": a.seed, "perception": a.perception,
            "wall_seconds": time.perf_counter() - t0, "cells": cells, "summary": summary, **extra}
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)

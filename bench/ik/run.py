@@ -18,7 +18,6 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -28,6 +27,7 @@ import pinocchio as pin  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+from bench.machine import machine_info  # noqa: E402
 
 from skillgen_ros.core.planning.ik import IKSolver  # noqa: E402
 from skillgen_ros.core.planning.kinematics import PandaKinematics  # noqa: E402
@@ -98,8 +98,7 @@ def main():
            "*_cpu_ms is process CPU time, which excludes preemption on a shared machine",
            "command": "python bench/ik/run.py" + (" --quick" if args.quick else ""),
            "samples": n, "seed": args.seed,
-           "machine": {"platform": platform.platform(), "python": platform.python_version(),
-                       "cpus": os.cpu_count(), "load_avg_before": load_before, "load_avg_after": os.getloadavg()},
+           "machine": machine_info(load_avg_before=load_before, load_avg_after=os.getloadavg()),
            "anchors": {"trac_ik_panda": {"solve_rate": 0.997, "mean_ms": 0.38},
                        "kdl_panda": {"solve_rate": 0.6177}},
            "ours": ours}

@@ -26,7 +26,6 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
@@ -37,6 +36,7 @@ import numpy as np  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+from bench.machine import machine_info  # noqa: E402
 GOALS = {"adds_lt_1cm_rate": 0.95, "trans_median_mm": 5.0, "rot_median_deg": 3.0, "latency_640x480_ms": 100.0}
 
 _W = {}  # per-worker state
@@ -228,9 +228,7 @@ def main(argv=None) -> int:
     out = {
         "benchmark": "perception",
         "command": " ".join(["python", "bench/perception/run.py"] + (argv if argv is not None else sys.argv[1:])),
-        "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count(),
-                    "processor": platform.processor() or platform.machine(),
-                    "threads_per_frame": os.environ.get("OMP_NUM_THREADS")},
+        "machine": machine_info(threads_per_frame=os.environ.get("OMP_NUM_THREADS")),
         "config": {"scenes_per_task": n, "tasks": list(TASK_NAMES), "resolution_hi": [640, 480],
                    "resolution_default": [d.width, d.height], "depth_noise_sigma": "a + b z^2",
                    "noise_a_m": args.noise[0], "noise_b_per_m": args.noise[1], "dropout": args.noise[2],

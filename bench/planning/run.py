@@ -20,7 +20,6 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -32,6 +31,7 @@ from scipy.spatial.transform import Rotation  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+from bench.machine import machine_info  # noqa: E402
 
 from skillgen_ros.core.geometry import Pose  # noqa: E402
 from skillgen_ros.core.planning.collision import Box, CollisionModel  # noqa: E402
@@ -219,8 +219,7 @@ def main():
     out = {
         "benchmark": "planning", "command": "python " + " ".join(sys.argv),
         "problems": n, "boxes_per_problem": [args.min_boxes, args.max_boxes], "seed": args.seed, "timeout_s": args.timeout, "camera_px": args.camera_px,
-        "machine": {"platform": platform.platform(), "python": platform.python_version(),
-                    "cpus": os.cpu_count(), "load_avg": os.getloadavg()},
+        "machine": machine_info(),
         "anchors": {"moveit_ompl_rrtconnect_typical_s": [0.1, 0.2], "curobo_gpu_median_s": 0.031,
                     "vamp_simd_median_s": 35e-6},
         "results": results,

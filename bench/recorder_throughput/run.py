@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import shutil
 import signal
 import struct
@@ -35,6 +34,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+from bench.machine import machine_info  # noqa: E402
 from skillgen_ros import rosenv  # noqa: E402  (loopback discovery before rclpy)
 
 PC_TOPIC, JS_TOPIC = "/camera/front/points", "/joint_states"
@@ -309,10 +309,9 @@ def main() -> int:
     result = {
         "benchmark": "recorder_throughput",
         "command": " ".join(["python", "bench/recorder_throughput/run.py"] + sys.argv[1:]),
-        "machine": {"platform": platform.platform(), "python": platform.python_version(),
-                    "cpus": os.cpu_count(), "processor": platform.processor() or platform.machine(),
-                    "loadavg_1m_before_after": [round(load_before[0], 2), round(os.getloadavg()[0], 2)],
-                    "note": "shared machine: other jobs' load inflates losses and timing errors"},
+        "machine": machine_info(
+            loadavg_1m_before_after=[round(load_before[0], 2), round(os.getloadavg()[0], 2)],
+            note="shared machine: other jobs' load inflates losses and timing errors"),
         "input": {"duration_s": a.duration, "pointcloud": "640x480 xyz+rgb float32 @30 Hz",
                   "pointcloud_bytes": published_b["pc_bytes"], "joint_states_hz": 500,
                   "pointcloud_qos": "reliable" if a.reliable else "sensor_data (best effort)",

@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import time
@@ -28,6 +27,7 @@ from scipy.spatial.transform import Rotation
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+from bench.machine import machine_info  # noqa: E402
 
 from skillgen_ros import rosenv  # noqa: E402
 from skillgen_ros.core.geometry import Pose, rotation_angle  # noqa: E402
@@ -221,8 +221,7 @@ def main() -> int:
     args.repeats = args.repeats or (1 if args.quick else 5)
     targets = figure_eight(n)
     res = {"command": " ".join(["python", "bench/sim_driver/run.py"] + (["--quick"] if args.quick else [])),
-           "machine": {"platform": platform.platform(), "python": platform.python_version(),
-                       "cpus": os.cpu_count(), "loadavg_start": os.getloadavg()},
+           "machine": machine_info(loadavg_start=os.getloadavg()),
            "setup": {"control_hz": HZ, "physics_hz": 240.0, "periods": n, "cameras": "front+wrist 84x84 at 20 Hz",
                      "figure_eight": "x amp 0.10 m, y amp 0.06 m, z 0.03 m, yaw +-20 deg, period 8 s"}}
     dom = 60 + os.getpid() % 30

@@ -13,14 +13,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import sys
 import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
+from bench.machine import machine_info  # noqa: E402
 
 from skillgen_ros.cli.demos import subset_paths  # noqa: E402
 from skillgen_ros.core.geometry import Pose  # noqa: E402
@@ -71,8 +70,7 @@ def main() -> int:
         print(f"{task}: {succ}/{n} open-loop replays succeed (baseline, other scene: {base}/{n})")
     doc = {"benchmark": "source_demos", "command": "python bench/source_demos/run.py" + (" --quick" if a.quick else ""),
            "what": "open-loop replay of the shipped source demos from their recorded initial scenes (pybullet)",
-           "machine": {"platform": platform.platform(), "python": platform.python_version(),
-                       "cpus": os.cpu_count(), "processor": platform.processor()},
+           "machine": machine_info(),
            "wall_s": round(time.monotonic() - t_all, 1), "tasks": results}
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(doc, indent=2) + "\n")

@@ -16,7 +16,11 @@ STOP = threading.Event()  # set by SIGINT/SIGTERM from the first instant of the 
 
 
 def quiet_stop_signals() -> threading.Event:
-    """SIGINT/SIGTERM set STOP instead of raising KeyboardInterrupt (runtime.py says why)."""
+    """SIGINT/SIGTERM set STOP instead of raising KeyboardInterrupt. runtime.run_nodes installs them
+    again before rclpy.init, whose handler shuts the context down (the executor's spin returns) and
+    then calls this one. A KeyboardInterrupt can land anywhere, inside rclpy's executor too: it once
+    left a node handle marked in use, and destroy_node then waited forever (a launch Ctrl-C test
+    hung in CI)."""
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, lambda _signum, _frame: STOP.set())
     return STOP
@@ -28,45 +32,23 @@ def _run(node: str) -> int:
     return 0 if STOP.is_set() else module.main()
 
 
-def sim_driver() -> int:
-    return _run("sim_driver")
+def _entry(node: str):
+    def main() -> int:
+        return _run(node)
+
+    main.__name__ = main.__qualname__ = node
+    return main
 
 
-def mock_driver() -> int:
-    return _run("mock_driver")
-
-
-def perception() -> int:
-    return _run("perception")
-
-
-def planner() -> int:
-    return _run("planner")
-
-
-def skill_replay() -> int:
-    return _run("skill_replay")
-
-
-def datagen() -> int:
-    return _run("datagen")
-
-
-def hsp() -> int:
-    return _run("hsp")
-
-
-def recorder() -> int:
-    return _run("recorder")
-
-
-def player() -> int:
-    return _run("player")
-
-
-def teleop() -> int:
-    return _run("teleop")
-
-
-def container() -> int:
-    return _run("container")
+# setup.py's console scripts: `<node> = skillgen_ros.nodes.entry:<node>`
+sim_driver = _entry("sim_driver")
+mock_driver = _entry("mock_driver")
+perception = _entry("perception")
+planner = _entry("planner")
+skill_replay = _entry("skill_replay")
+datagen = _entry("datagen")
+hsp = _entry("hsp")
+recorder = _entry("recorder")
+player = _entry("player")
+teleop = _entry("teleop")
+container = _entry("container")

@@ -105,7 +105,7 @@ class PlannerNode(Node):
         self.kin = PandaKinematics()
         self.cm = CollisionModel(self.kin, margin=p["box_margin"], cloud_margin=p["cloud_margin"])
         self.ik = IKSolver(self.kin, rng=seed)
-        try:  # MotionPlanner validates its own settings (the IK budget)
+        try:  # MotionPlanner validates its own settings (the IK and RRT budgets)
             self.planner = MotionPlanner(self.kin, self.ik, self.cm, p["retreat_distance"],
                                          p["approach_distance"], ik_timeout=p["ik_timeout"],
                                          ik_iterations=p["ik_iterations"], rrt_iterations=p["rrt_iterations"],

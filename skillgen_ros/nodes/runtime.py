@@ -2,7 +2,7 @@
 
 `run_node(factory)` does what ros2/demos do: init, an explicit executor, Ctrl-C and external
 shutdown caught, no traceback on exit, exit status 0 for a clean stop, at any moment of start-up
-too. Ctrl-C never raises KeyboardInterrupt here (see _quiet_stop_signals). SIGUSR1 dumps every
+too. Ctrl-C never raises KeyboardInterrupt here (see entry.quiet_stop_signals). SIGUSR1 dumps every
 thread's stack to stderr (`skillgen launch` does that to a node that does not stop).
 User mistakes exit 2 with one line "REASON: message" instead of a trace: an unparsable params
 file, a parameter of the wrong type, or a `SkillGenError` (e.g. ParameterError) raised while the
@@ -14,7 +14,6 @@ from __future__ import annotations
 import faulthandler
 import signal
 import sys
-import threading
 from typing import Callable
 
 from skillgen_ros import rosenv  # noqa: F401  (sets loopback discovery before rclpy loads)
@@ -30,15 +29,6 @@ from skillgen_ros.nodes.entry import quiet_stop_signals
 def _fail(name: str, reason: str, msg: str) -> int:
     print(f"[{name}] {reason}: {msg}", file=sys.stderr, flush=True)
     return 2
-
-
-def _quiet_stop_signals() -> threading.Event:
-    """SIGINT/SIGTERM set an event instead of raising KeyboardInterrupt. Installed before
-    rclpy.init, whose handler shuts the context down (the executor's spin returns) and then calls
-    this one. A KeyboardInterrupt can land anywhere, inside rclpy's executor too: it once left a node
-    handle marked in use, and destroy_node then waited forever (a launch Ctrl-C test hung in CI).
-    The event is entry.STOP, which the console script set up before the node's imports."""
-    return quiet_stop_signals()
 
 
 def run_node(factory: Callable[[], "rclpy.node.Node"], args=None, threads: int = 4, name: str = "",
@@ -57,7 +47,7 @@ def run_nodes(factories: list[Callable[[], "rclpy.node.Node"]], args=None, threa
     single-threaded only if every node asks for it (`executor_kind`, else `executor`)."""
     args = sys.argv if args is None else args
     faulthandler.register(signal.SIGUSR1, all_threads=True)  # `skillgen launch` asks a hung node for its stacks
-    stop = _quiet_stop_signals()
+    stop = quiet_stop_signals()  # the event entry.py set up before this node's imports
     if stop.is_set():  # Ctrl-C while the node's modules were loading (entry.py)
         return 0
     try:
@@ -95,7 +85,7 @@ def run_nodes(factories: list[Callable[[], "rclpy.node.Node"]], args=None, threa
     finally:
         # A second Ctrl-C must not interrupt the cleanup (a recorder finalizing its bag, say). Also
         # takes rclpy's handler out of the way: without these two lines the recorder hung in
-        # cleanup in about 1 of 12 start-up Ctrl-C tests, even with _quiet_stop_signals.
+        # cleanup in about 1 of 12 start-up Ctrl-C tests, even with quiet_stop_signals.
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
         for n in nodes:

@@ -73,7 +73,7 @@ class SimWorld:
         self.cfg = cfg
         if self.cfg.physics_hz % self.cfg.control_hz:
             raise InvalidInputError("physics_hz must be an integer multiple of control_hz")
-        FrankaHand(self.cfg.gripper_force, self.cfg.gripper_hold_force)  # validates the forces before building
+        self.hand = FrankaHand(self.cfg.gripper_force, self.cfg.gripper_hold_force)  # validates the forces
         self.substeps = int(round(self.cfg.physics_hz / self.cfg.control_hz))
         self.dt = 1.0 / self.cfg.physics_hz
         self.p = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)

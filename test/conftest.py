@@ -23,11 +23,15 @@ REPO = Path(__file__).resolve().parents[1]
 VENV_BIN = Path(sys.prefix) / "bin"
 
 # Domain IDs 0..101 and 215..232 are valid for Fast DDS on one host; spread workers apart.
-_BASE = 10 + (os.getpid() % 8) * 10
+# SKILLGEN_TEST_DOMAIN_BASE pins a run to its own block of 10 IDs (two suites on one machine).
+_PINNED = os.environ.get("SKILLGEN_TEST_DOMAIN_BASE")
+_BASE = int(_PINNED) if _PINNED else 10 + (os.getpid() % 8) * 10
 _ids = itertools.count()
 
 
 def next_domain_id() -> int:
+    if _PINNED:
+        return _BASE + next(_ids) % 10
     return 1 + (_BASE + next(_ids)) % 100
 
 

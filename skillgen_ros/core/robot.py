@@ -28,8 +28,22 @@ GRIPPER_MAX_WIDTH = 0.08  # metres between the fingers, fully open
 # A comfortable "ready" pose: EE about 0.5 m in front of the base, pointing down.
 Q_HOME = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 1.9, 0.785398])
 
-# The robot base sits at the world origin; the table top is at TABLE_Z (world z up).
-TABLE_Z = 0.0
+# The robot base (panda_link0) sits at the world origin; the table is robosuite's, mounted as robosuite
+# mounts the Panda beside it (robosuite 1.5.2):
+# - models/robots/manipulators/panda_robot.py base_xpos_offset["table"] = (-0.16 - table_length / 2, 0, 0):
+#   the base is 0.16 + 0.8 / 2 = 0.56 m behind the centre of the 0.8 m table (table_full_size (0.8, 0.8, 0.05),
+#   environments/manipulation/nut_assembly.py);
+# - the default RethinkMount (models/bases/rethink_mount.py top_offset (0, 0, -0.01); its root body at
+#   z -0.922 in models/assets/bases/rethink_mount.xml) puts the base at z 0.922 - 0.01 = 0.912 through
+#   RobotModel.set_base_xpos / bottom_offset (models/robots/robot_model.py);
+# - NutAssembly / Square put the table top at table_offset z = 0.82, so the top is 0.912 - 0.82 = 0.092 m
+#   below the base. (MimicGen's Threading uses table_offset z 0.80, 2 cm lower; we keep one table for all
+#   tasks: docs/tasks.md lists it as a deviation.)
+ROBOSUITE_BASE_Z = 0.912
+ROBOSUITE_TABLE_TOP_Z = 0.82
+TABLE_Z = ROBOSUITE_TABLE_TOP_Z - ROBOSUITE_BASE_Z   # -0.092: table top in the world (base) frame
+TABLE_FULL_SIZE = (0.8, 0.8, 0.05)                   # robosuite table_full_size (x, y, thickness)
+TABLE_CENTER_XY = (0.16 + TABLE_FULL_SIZE[0] / 2, 0.0)  # (0.56, 0): base_xpos_offset["table"] negated
 
 
 def panda_urdf_path() -> str:

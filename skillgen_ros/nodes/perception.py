@@ -61,7 +61,7 @@ class PerceptionNode(Node):
                                d(description="front camera position (world) for the visibility score; [] = from above"))
         self.declare_parameter("use_wrist", False, d(description="fuse camera/wrist/points with the front cloud"))
         self.declare_parameter("max_cloud_age", 0.0, d(description="s; clouds older than this (node clock minus stamp) give NO_DATA; 0 = any age"))
-        self.declare_parameter("workspace_lo", [0.2, -0.5, -0.05], d(description="workspace box min (world, m)"))
+        self.declare_parameter("workspace_lo", [0.2, -0.5, -0.15], d(description="workspace box min (world, m)"))
         self.declare_parameter("workspace_hi", [1.0, 0.5, 0.3], d(description="workspace box max (world, m)"))
         self.declare_parameter("voxel", 0.0025, d(description="m; object-cloud voxel size"))
         self.declare_parameter("table_distance", 0.004, d(description="m; RANSAC table inlier band"))

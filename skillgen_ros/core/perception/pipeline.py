@@ -46,7 +46,7 @@ class PerceptionParams:
     """Pipeline knobs; metres unless named otherwise. Mirrors params/perception.yaml."""
 
     world_frame: str = "world"
-    workspace_lo: tuple[float, float, float] = (0.2, -0.5, -0.05)   # the table in front of the robot,
+    workspace_lo: tuple[float, float, float] = (0.2, -0.5, -0.15)   # the table in front of the robot,
     workspace_hi: tuple[float, float, float] = (1.0, 0.5, 0.3)      # below the arm's home pose
     up: tuple[float, float, float] = (0.0, 0.0, 1.0)
     table_distance: float = 0.004       # RANSAC inlier band of the table plane

@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 from ..geometry import make_T
 
 FRONT_EYE = np.array([1.35, 0.0, 0.70])
-FRONT_TARGET = np.array([0.52, 0.0, 0.02])
+FRONT_TARGET = np.array([0.56, 0.0, -0.07])  # robosuite table centre, 2 cm above its top (core/robot.py)
 WRIST_IN_HAND = np.array([0.065, 0.0, 0.03])
 WRIST_TILT_DEG = 20.0
 GL_FROM_OPTICAL = np.diag([1.0, -1.0, -1.0, 1.0])  # OpenGL camera: y up, looking along -z

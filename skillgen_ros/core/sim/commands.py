@@ -17,7 +17,7 @@ from ..geometry import Pose, validate_pose
 from ..robot import ARM_JOINTS, Q_LOWER, Q_UPPER, TABLE_Z, V_MAX
 
 WORKSPACE_LOW = np.array([0.10, -0.65, TABLE_Z + 0.005])
-WORKSPACE_HIGH = np.array([0.90, 0.65, TABLE_Z + 0.90])
+WORKSPACE_HIGH = np.array([1.00, 0.65, TABLE_Z + 0.90])  # x: robosuite's table ends 0.96 m out
 WORKSPACE_CLAMP_MARGIN = 0.10
 POSITION_LIMIT_TOL = 1e-3   # rad beyond the URDF limits still accepted (numerical slack)
 VELOCITY_LIMIT_TOL = 1.01   # factor over V_MAX still accepted

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import InvalidInputError
 from ..geometry import Pose
 from ..robot import GRIPPER_MAX_WIDTH, Q_HOME, TABLE_Z
-from ..tasks import SceneDescription, get_task, validate_seed
+from ..tasks import SceneDescription, SceneState, get_task, validate_seed
 from ..tasks.shapes import read_obj
 from . import camera as cam
 from .commands import TrajectoryCode, TrajectoryResult, validate_gripper, validate_osc_target, validate_trajectory
@@ -78,7 +78,7 @@ class MockWorld:
         rng = np.random.default_rng([seed, 2])
         pts = [self._poses[o.id].rotation.apply(surface_samples(o.mesh_path, POINTS_PER_OBJECT, rng))
                + self._poses[o.id].position for o in objects]
-        gx, gy = np.meshgrid(np.linspace(0.3, 0.8, 26), np.linspace(-0.4, 0.4, 41))
+        gx, gy = np.meshgrid(np.linspace(0.2, 0.92, 37), np.linspace(-0.4, 0.4, 41))  # robosuite's table
         pts.append(np.c_[gx.ravel(), gy.ravel(), np.full(gx.size, TABLE_Z)])
         self._points = np.vstack(pts)
         self.scene = SceneDescription(task, variant, seed, objects, dict(self._poses), self._q.copy())
@@ -110,7 +110,8 @@ class MockWorld:
         return dict(self._poses)
 
     def task_success(self) -> bool:
-        return self.scene is not None and self.task.is_success(self._poses)
+        return self.scene is not None and self.task.is_success(
+            SceneState(dict(self._poses), self._ee.position.copy(), float(self.gripper_command)))
 
     # control ----------------------------------------------------------
     def gripper(self, command: float) -> None:

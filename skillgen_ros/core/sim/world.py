@@ -15,9 +15,10 @@ from pybullet_utils.bullet_client import BulletClient
 
 from ..errors import InvalidInputError
 from ..geometry import Pose
-from ..robot import (ARM_JOINTS, EE_LINK, FINGER_JOINTS, GRIPPER_MAX_WIDTH, HAND_LINK, Q_HOME, TABLE_Z,
+from ..robot import (ARM_JOINTS, EE_LINK, FINGER_JOINTS, GRIPPER_MAX_WIDTH, HAND_LINK, Q_HOME,
+                     TABLE_CENTER_XY, TABLE_FULL_SIZE, TABLE_Z,
                      panda_urdf_path)
-from ..tasks import SceneDescription, get_task, validate_seed
+from ..tasks import SceneDescription, SceneState, get_task, validate_seed
 from ..tasks.objects import center_of_mass
 from ..tasks.spec import ObjectSpec
 from . import camera as cam
@@ -29,8 +30,8 @@ from .control import JointGains, OscGains, TrajectorySampler, joint_torques, osc
 from .hand import STATE_SIZE as HAND_STATE_SIZE
 from .hand import FrankaHand
 
-TABLE_HALF = (0.75, 0.8, 0.025)
-TABLE_CENTER = (0.35, 0.0, TABLE_Z - 0.025)
+TABLE_HALF = tuple(x / 2 for x in TABLE_FULL_SIZE)   # robosuite's 0.8 x 0.8 x 0.05 table (core/robot.py)
+TABLE_CENTER = (*TABLE_CENTER_XY, TABLE_Z - TABLE_HALF[2])
 DEFAULT_GOAL_TOLERANCE = 0.02  # rad
 
 
@@ -99,7 +100,7 @@ class SimWorld:
         self.table = p.createMultiBody(0, table_col, table_vis, TABLE_CENTER)
         p.changeDynamics(self.table, -1, lateralFriction=1.0)
         urdf = self._urdf
-        self.robot = p.loadURDF(urdf, (0, 0, TABLE_Z), useFixedBase=True,
+        self.robot = p.loadURDF(urdf, (0, 0, 0), useFixedBase=True,
                                 flags=p.URDF_USE_INERTIA_FROM_FILE | p.URDF_ENABLE_CACHED_GRAPHICS_SHAPES)
         names = {p.getJointInfo(self.robot, i)[1].decode(): i for i in range(p.getNumJoints(self.robot))}
         links = {p.getJointInfo(self.robot, i)[12].decode(): i for i in range(p.getNumJoints(self.robot))}
@@ -218,8 +219,12 @@ class SimWorld:
         """True object-frame poses (origin at the bounding-box centre) of the scene objects."""
         return {oid: self._object_pose(oid) for oid in self.bodies}
 
+    def scene_state(self) -> SceneState:
+        """What the task's success rule reads: true object poses, the EE position, the gripper command."""
+        return SceneState(self.object_poses(), self.ee_pose().position.copy(), float(self.hand.command))
+
     def task_success(self) -> bool:
-        return self.scene is not None and self.task.is_success(self.object_poses())
+        return self.scene is not None and self.task.is_success(self.scene_state())
 
     def get_state(self) -> np.ndarray:
         """Flat state: [time, q(9), qd(9), per object (scene order): pos 3, quat 4, lin vel 3, ang vel 3,

@@ -2,7 +2,7 @@
 
 Pure (no pybullet, no rclpy): the mock driver, perception and the planner import it freely.
 """
-from .spec import (MAX_SEED, ObjectSpec, Region, SceneDescription, SkillSpec, TaskSpec,  # noqa: F401
+from .spec import (MAX_SEED, ObjectSpec, Region, SceneDescription, SceneState, SkillSpec, TaskSpec,  # noqa: F401
                    validate_seed)
 from .suite import TASK_NAMES, get_task, regions_markdown  # noqa: F401
 from ..errors import UnknownTaskError, UnknownVariantError  # noqa: F401

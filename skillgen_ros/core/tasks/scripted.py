@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import InvalidInputError
 from ..geometry import Pose
+from ..robot import TABLE_Z
 from .spec import ObjectSpec, TaskSpec
 from .suite import get_task
 
@@ -42,7 +43,8 @@ class ScriptParams:
     place_drop: float = 0.02          # release height of a placed object's bottom above its support (m)
     hand_clearance: float = 0.08     # keep the grasp point this far from other objects when placing (m)
     insert_pre: float = 0.05          # needle tip this far before the ring plane before inserting (m)
-    insert_depth: float = 0.05        # and this far past it at the end (m)
+    insert_depth: float = 0.06        # and this far past it at the end: the 12 cm shaft's centre at the
+    #                                   ring, MimicGen's success (mimicgen/envs/robosuite/threading.py)
     yaw_noise: float = 0.0            # hooks for a noisy demonstrator (rad, m); 0 = deterministic
     pos_noise: float = 0.0
 
@@ -124,7 +126,7 @@ class Scripter:
 
 def _travel_z(env, params: ScriptParams, carried_below: float = 0.0, exclude: tuple = ()) -> float:
     """Travel height clearing every fixture/obstacle top by `clearance` plus what hangs below the EE."""
-    tops = [0.0]
+    tops = [TABLE_Z]
     for o in env.scene.objects:
         if o.id not in exclude:
             pose = env.object_poses()[o.id]

@@ -1,8 +1,9 @@
 """Typed task descriptions: objects, skills, reset regions (D0/D1/D2/clutter), scene description.
 
 A task is data (objects with meshes, a skill list, per-variant reset regions) plus one success
-predicate over object poses. Keeping the predicate a pure function of poses lets the kinematic
-mock driver and the physics driver answer `task_success` the same way.
+predicate over a SceneState (true object poses + the EE position + the gripper command). Keeping the
+predicate a pure function of that state lets the kinematic mock driver, the physics driver and the
+in-process environment answer `task_success` the same way.
 
 Object frames: the origin is the centre of the object's axis-aligned bounding box in its own
 frame, z up when the object rests upright, so a resting object's world z is `half_extents[2]`
@@ -24,6 +25,17 @@ from .shapes import Part
 MAX_SEED = 2**32 - 1
 SEPARATION_MARGIN = 0.01  # metres between the bounding circles of two sampled objects
 SYMMETRIES = ("none", "z2", "z4", "z_continuous")
+
+
+@dataclass(frozen=True)
+class SceneState:
+    """What a success rule reads: true world poses of the objects, the EE (panda_grasptarget) position
+    and the last gripper command (-1 open .. +1 closed). robosuite's nut rule needs the EE: a nut still
+    in the hand near its centre does not count (nut_assembly.py _check_success, r_reach < 0.6)."""
+
+    poses: Mapping[str, Pose]
+    ee_position: np.ndarray
+    gripper: float = -1.0
 
 
 @dataclass(frozen=True)
@@ -81,10 +93,11 @@ class Region:
     def sample(self, rng: np.random.Generator) -> tuple[float, float, float]:
         return (float(rng.uniform(*self.x)), float(rng.uniform(*self.y)), float(rng.uniform(*self.yaw)))
 
-    def contains(self, pose: Pose, tol: float = 1e-6) -> bool:
-        """True if the pose's xy lies in the box and its yaw (about world z) in the yaw range."""
-        x, y = pose.position[:2]
+    def contains(self, pose: Pose, tol: float = 1e-6, obj: "ObjectSpec | None" = None) -> bool:
+        """True if the pose's xy (of obj's "body_origin" keypoint when obj is given) lies in the box
+        and its yaw (about world z) in the yaw range."""
         yaw = float(Rotation.from_quat(pose.quaternion).as_euler("ZYX")[0])
+        x, y = pose.position[:2] + (_anchor_offset(obj, yaw) if obj is not None else 0.0)
         lo, hi = self.yaw
         # compare yaw modulo 2*pi against the range
         k = np.round(((lo + hi) / 2 - yaw) / (2 * np.pi))
@@ -97,7 +110,7 @@ class Region:
 class TaskSpec:
     """A task: objects, skills, variants and their reset regions, and the success predicate.
 
-    `objects` are present in every variant; `obstacle` (if any) is added in the "clutter" variant.
+    `objects` are present in every variant; `obstacle` (if any) is added in the `clutter_variants`.
     """
 
     name: str
@@ -105,17 +118,18 @@ class TaskSpec:
     skills: tuple[SkillSpec, ...]
     variants: tuple[str, ...]
     region_table: Mapping[str, Mapping[str, Region]] = field(repr=False, default_factory=dict)
-    success_fn: Callable[[Mapping[str, Pose]], bool] | None = field(repr=False, default=None)
+    success_fn: Callable[[SceneState], bool] | None = field(repr=False, default=None)
     obstacle: ObjectSpec | None = None
+    clutter_variants: tuple[str, ...] = ()
 
     def _check_variant(self, variant: str) -> None:
         if variant not in self.variants:
             raise UnknownVariantError(f"task {self.name} has no variant {variant!r}; known: {list(self.variants)}")
 
     def objects_for(self, variant: str) -> tuple[ObjectSpec, ...]:
-        """Objects present in the scene of this variant (adds the obstacle for "clutter")."""
+        """Objects present in the scene of this variant (adds the obstacle in a clutter variant)."""
         self._check_variant(variant)
-        return self.objects + ((self.obstacle,) if variant == "clutter" and self.obstacle else ())
+        return self.objects + ((self.obstacle,) if variant in self.clutter_variants and self.obstacle else ())
 
     def object(self, object_id: str) -> ObjectSpec:
         for o in self.objects + ((self.obstacle,) if self.obstacle else ()):
@@ -129,15 +143,20 @@ class TaskSpec:
         return dict(self.region_table[variant])
 
     def sample_reset(self, variant: str, rng: np.random.Generator) -> dict[str, Pose]:
-        """Sample object poses: uniform in each region, bounding circles kept apart (rejection)."""
-        objs = self.objects_for(variant)
+        """Sample object poses: uniform in each region, bounding circles kept apart (rejection).
+
+        A region holds the object's "body_origin" keypoint when it has one (the reference model's body
+        origin, e.g. robosuite's nut body at the ring centre), else the object-frame origin. Objects are
+        placed in the order of the variant's region table (the reference's sampling order)."""
         regions = self.regions(variant)
+        objs = sorted(self.objects_for(variant), key=lambda o: list(regions).index(o.id))  # region order
         for _ in range(500):
             placed: dict[str, Pose] = {}
             ok = True
             for o in objs:
                 for _ in range(100):
                     x, y, yaw = regions[o.id].sample(rng)
+                    x, y = np.array([x, y]) - _anchor_offset(o, yaw)
                     if all(np.hypot(x - p.position[0], y - p.position[1])
                            >= o.footprint_radius + self.object(k).footprint_radius + SEPARATION_MARGIN
                            for k, p in placed.items()):
@@ -148,12 +167,21 @@ class TaskSpec:
                     ok = False
                     break
             if ok:
-                return placed
+                return {o.id: placed[o.id] for o in self.objects_for(variant)}
         raise SkillGenError(f"{self.name}/{variant}: could not sample a collision-free reset", "RESET_FAILED")
 
-    def is_success(self, poses: Mapping[str, Pose]) -> bool:
-        """The task's success predicate, evaluated on world poses of its objects."""
-        return bool(self.success_fn(poses)) if self.success_fn else False
+    def is_success(self, state: SceneState) -> bool:
+        """The task's success predicate, evaluated on the scene state (true poses, EE, gripper)."""
+        if not isinstance(state, SceneState):
+            raise InvalidInputError(f"is_success takes a SceneState, got {type(state).__name__}")
+        return bool(self.success_fn(state)) if self.success_fn else False
+
+
+def _anchor_offset(o: ObjectSpec, yaw: float) -> np.ndarray:
+    """xy of the object's "body_origin" keypoint from its frame origin at this yaw (0 if it has none)."""
+    if not any(k == "body_origin" for k, _ in o.keypoints):
+        return np.zeros(2)
+    return Rotation.from_euler("z", yaw).apply(o.keypoint("body_origin"))[:2]
 
 
 @dataclass(frozen=True)

@@ -1,45 +1,75 @@
 """The task suite: Square, PickPlace, NutAssembly, Threading (+ clutter variants of Square/PickPlace).
 
-Reset regions are the paper's appendix (MimicGen/SkillMimicGen D0/D1/D2) scaled to a Panda whose
-base is at the world origin on the table: objects live in roughly x in [0.38, 0.70] m,
-y in [-0.30, 0.30] m. "clutter" = D1 regions plus one large obstacle near the workspace centre.
+Reset regions are robosuite's / MimicGen's placement initializers, to the millimetre, in our world
+frame (the Panda base, mounted as robosuite mounts it: core/robot.py). Those initializers give x/y
+ranges relative to the table centre (`reference=table_offset`); `_rs` adds TABLE_CENTER_XY (0.56, 0).
+Square's clutter variants are the paper's (SkillMimicGen appendix, "Presence of Clutter"): the D1 /
+D2 regions plus one large obstruction with its own region near the workspace centre. PickPlace (not a
+paper simulation task) keeps our own regions and its "clutter" variant.
 docs/tasks.md lists every region (generated from this file by `regions_markdown()`).
 Skill object_id is the skill's reference object (the frame its motion is expressed in): the
 object grasped for a grasp skill, the target fixture for a place/insert skill.
 """
 from __future__ import annotations
 
-from typing import Mapping
-
 import numpy as np
 
 from ..errors import UnknownTaskError
 from ..geometry import Pose
+from ..robot import TABLE_CENTER_XY, TABLE_Z
 from . import objects as O
-from .spec import ObjectSpec, Region, SkillSpec, TaskSpec
+from .spec import ObjectSpec, Region, SceneState, SkillSpec, TaskSpec
 
 PI = np.pi
-FULL = (-PI, PI)
+FULL = (0.0, 2 * PI)   # robosuite / MimicGen nuts: z_rot (0, 2 pi)
+
+# robosuite nut_assembly.py on_peg(): |dx|, |dy| < 0.03 and the nut body below table_offset z + 0.05
+ON_PEG_XY = 0.03
+ON_PEG_Z = 0.05
+# robosuite nut_assembly.py _check_success(): r_reach = 1 - tanh(10 * |eef - nut|) must be < 0.6, i.e.
+# the EE farther than atanh(0.4) / 10 = 0.0424 m from the nut body (the hand has let go or moved off)
+R_REACH_MAX = 0.6
+RELEASE_DISTANCE = float(np.arctanh(1.0 - R_REACH_MAX) / 10.0)
 
 
 def _deg(a: float, b: float) -> tuple[float, float]:
     return (float(np.radians(a)), float(np.radians(b)))
 
 
+def _rs(x: tuple[float, float], y: tuple[float, float], yaw: tuple[float, float] = (0.0, 0.0)) -> Region:
+    """A robosuite / MimicGen placement range (x, y relative to the table centre) in our world frame."""
+    cx, cy = TABLE_CENTER_XY
+    return Region((round(cx + x[0], 6), round(cx + x[1], 6)), (round(cy + y[0], 6), round(cy + y[1], 6)),
+                  (float(yaw[0]), float(yaw[1])))
+
+
 def _world(pose: Pose, local) -> np.ndarray:
     return pose.rotation.apply(np.asarray(local, float)) + pose.position
 
 
-def nut_on_peg(nut: ObjectSpec, peg: ObjectSpec, poses: Mapping[str, Pose], xy_tol: float = 0.02) -> bool:
-    """The nut's ring centre is within xy_tol of the peg axis and below the peg's top."""
-    c = _world(poses[nut.id], nut.keypoint("ring_center"))
-    peg_pose = poses[peg.id]
-    top = _world(peg_pose, peg.keypoint("top"))
-    return bool(np.hypot(*(c[:2] - peg_pose.position[:2])) < xy_tol and c[2] < top[2] - 0.01)
+def on_peg(nut: ObjectSpec, peg: ObjectSpec, poses) -> bool:
+    """robosuite NutAssembly.on_peg: nut body within 3 cm of the peg body in world x and y, and
+    below the table top + 5 cm (so at least 8 cm down the 13 cm peg)."""
+    c = _world(poses[nut.id], nut.keypoint("body_origin"))
+    p = _world(poses[peg.id], peg.keypoint("body_origin"))
+    return bool(abs(c[0] - p[0]) < ON_PEG_XY and abs(c[1] - p[1]) < ON_PEG_XY and c[2] < TABLE_Z + ON_PEG_Z)
 
 
-def object_in_bin(obj: ObjectSpec, bin_: ObjectSpec, poses: Mapping[str, Pose]) -> bool:
-    """The object's centre is inside the bin's inner footprint and low enough to be resting in it."""
+def hand_released(nut: ObjectSpec, state: SceneState) -> bool:
+    """robosuite's r_reach < 0.6: the EE is more than RELEASE_DISTANCE (4.24 cm) from the nut body."""
+    c = _world(state.poses[nut.id], nut.keypoint("body_origin"))
+    r_reach = 1.0 - np.tanh(10.0 * float(np.linalg.norm(np.asarray(state.ee_position, float) - c)))
+    return bool(r_reach < R_REACH_MAX)
+
+
+def nut_on_peg(nut: ObjectSpec, peg: ObjectSpec, state: SceneState) -> bool:
+    """robosuite NutAssembly._check_success for one nut: on_peg and r_reach < 0.6."""
+    return on_peg(nut, peg, state.poses) and hand_released(nut, state)
+
+
+def object_in_bin(obj: ObjectSpec, bin_: ObjectSpec, state: SceneState) -> bool:
+    """The object's centre is inside the bin's inner footprint and low enough to be resting in it (ours)."""
+    poses = state.poses
     b = poses[bin_.id]
     local = b.rotation.inv().apply(poses[obj.id].position - b.position)
     floor = _world(b, bin_.keypoint("floor_center"))[2]
@@ -47,91 +77,115 @@ def object_in_bin(obj: ObjectSpec, bin_: ObjectSpec, poses: Mapping[str, Pose]) 
                 and poses[obj.id].position[2] < floor + 2 * obj.half_extents[2] + 0.02)
 
 
-def needle_through_ring(needle: ObjectSpec, tripod: ObjectSpec, poses: Mapping[str, Pose]) -> bool:
-    """The shaft crosses the ring plane inside the opening (tip on one side, shaft base on the other)."""
-    t = poses[tripod.id]
-    c = _world(t, tripod.keypoint("ring_center"))
-    axis = t.rotation.apply([1.0, 0.0, 0.0])
-    b = _world(poses[needle.id], needle.keypoint("shaft_base"))
-    tip = _world(poses[needle.id], needle.keypoint("tip"))
-    sb, st = float((b - c) @ axis), float((tip - c) @ axis)
-    if sb * st >= 0.0:
-        return False
-    p = b + (tip - b) * sb / (sb - st)
-    local = t.rotation.inv().apply(p - c)
-    return bool(abs(local[1]) < O.RING_OPENING_HALF and abs(local[2]) < O.RING_OPENING_HALF)
+def needle_through_ring(needle: ObjectSpec, tripod: ObjectSpec, state: SceneState) -> bool:
+    """MimicGen Threading._check_success: the needle (shaft) geom's centre within ring_size[1] = 1.2 cm
+    of the ring centre (the mean of the ring geoms), i.e. the shaft pushed half way through the ring."""
+    shaft = _world(state.poses[needle.id], needle.keypoint("shaft_center"))
+    ring = _world(state.poses[tripod.id], tripod.keypoint("ring_center"))
+    return bool(np.linalg.norm(shaft - ring) < O.RING_SIZE[1])
 
 
 def _fixed(x: float, y: float, yaw: float = 0.0) -> Region:
-    return Region((x, x), (y, y), (yaw, yaw))
+    return _rs((x, x), (y, y), (yaw, yaw))
 
 
-CLUTTER_REGION = Region((0.50, 0.58), (-0.06, 0.06), _deg(-45, 45))
+# The clutter obstruction (O.obstacle, 10 x 10 x 16 cm): the paper places it "randomly near the center of
+# the workspace" with its own distribution but gives no numbers; ours: +-4 cm x, +-6 cm y about the table
+# centre, yaw +-45 deg.
+OBSTACLE_REGION = _rs((-0.04, 0.04), (-0.06, 0.06), _deg(-45, 45))
+# PickPlace's own clutter obstacle region (not a paper task).
+PICKPLACE_OBSTACLE_REGION = Region((0.50, 0.58), (-0.06, 0.06), _deg(-45, 45))
+# robosuite pegs_arena.xml: peg1 (square) at (0.23, 0.1), peg2 (round) at (0.23, -0.1) from the table centre.
+SQUARE_PEG_XY, ROUND_PEG_XY = (0.23, 0.10), (0.23, -0.10)
 
 
 def _square() -> TaskSpec:
     nut, peg = O.square_nut(), O.square_peg()
-    d1 = {"square_peg": Region((0.48, 0.66), (0.04, 0.24)), "square_nut": Region((0.40, 0.53), (-0.30, -0.04), FULL)}
+    # MimicGen mimicgen/envs/robosuite/nut_assembly.py: Square_D0 (peg fixed at robosuite's peg1, nut
+    # x (-0.115, -0.11) y (0.11, 0.225) z_rot (0, 2 pi)), Square_D1 (nut x (-0.115, 0.115) y (-0.255, 0.255);
+    # peg x (-0.1, 0.3) y (-0.2, 0.2) z_rot 0), Square_D2 (nut and peg x, y (-0.25, 0.25); peg z_rot (0, pi/2)).
+    # The peg is sampled first and the nut kept off it, as Square_D1._reset_internal does.
+    d1 = {"square_peg": _rs((-0.1, 0.3), (-0.2, 0.2)), "square_nut": _rs((-0.115, 0.115), (-0.255, 0.255), FULL)}
+    d2 = {"square_peg": _rs((-0.25, 0.25), (-0.25, 0.25), (0.0, PI / 2)),
+          "square_nut": _rs((-0.25, 0.25), (-0.25, 0.25), FULL)}
     table = {
-        "D0": {"square_peg": _fixed(0.60, 0.12), "square_nut": Region((0.48, 0.485), (-0.215, -0.10), FULL)},
+        "D0": {"square_peg": _fixed(*SQUARE_PEG_XY), "square_nut": _rs((-0.115, -0.11), (0.11, 0.225), FULL)},
         "D1": d1,
-        "D2": {"square_peg": Region((0.40, 0.68), (-0.22, 0.22), _deg(-45, 45)),
-               "square_nut": Region((0.40, 0.68), (-0.25, 0.25), FULL)},
-        "clutter": {**d1, "obstacle": CLUTTER_REGION},
+        "D2": d2,
+        "D1_clutter": {**d1, "obstacle": OBSTACLE_REGION},
+        "D2_clutter": {**d2, "obstacle": OBSTACLE_REGION},
     }
     skills = (SkillSpec(0, "square_nut", "grasp_nut", "transit"),
               SkillSpec(1, "square_peg", "place_on_peg", "transfer", "square_nut"))
-    return TaskSpec("Square", (nut, peg), skills, ("D0", "D1", "D2", "clutter"), table,
-                    lambda p: nut_on_peg(nut, peg, p), O.obstacle())
+    return TaskSpec("Square", (nut, peg), skills, tuple(table), table,
+                    lambda s: nut_on_peg(nut, peg, s), O.obstacle(), ("D1_clutter", "D2_clutter"))
 
 
 def _pick_place() -> TaskSpec:
+    """Ours (robosuite's PickPlace is a bin-to-bin task the paper does not use): regions in our frame."""
     m, b = O.milk(), O.bin_()
-    d1 = {"bin": _fixed(0.55, 0.19), "milk": Region((0.42, 0.62), (-0.30, -0.08), _deg(-45, 45))}
+    d1 = {"bin": Region((0.55, 0.55), (0.19, 0.19)), "milk": Region((0.42, 0.62), (-0.30, -0.08), _deg(-45, 45))}
     table = {
-        "D0": {"bin": _fixed(0.55, 0.19), "milk": Region((0.50, 0.56), (-0.20, -0.14), _deg(-45, 45))},
+        "D0": {"bin": Region((0.55, 0.55), (0.19, 0.19)),
+               "milk": Region((0.50, 0.56), (-0.20, -0.14), _deg(-45, 45))},
         "D1": d1,
         "D2": {"bin": Region((0.45, 0.65), (0.14, 0.24), _deg(-45, 45)),
                "milk": Region((0.40, 0.66), (-0.30, -0.04), _deg(-45, 45))},
-        "clutter": {**d1, "obstacle": CLUTTER_REGION},
+        "clutter": {**d1, "obstacle": PICKPLACE_OBSTACLE_REGION},
     }
     skills = (SkillSpec(0, "milk", "grasp_milk", "transit"), SkillSpec(1, "bin", "place_in_bin", "transfer", "milk"))
-    return TaskSpec("PickPlace", (m, b), skills, ("D0", "D1", "D2", "clutter"), table,
-                    lambda p: object_in_bin(m, b, p), O.obstacle())
+    return TaskSpec("PickPlace", (m, b), skills, tuple(table), table,
+                    lambda s: object_in_bin(m, b, s), O.obstacle(), ("clutter",))
 
 
 def _nut_assembly() -> TaskSpec:
     sn, rn, sp, rp = O.square_nut(), O.round_nut(), O.square_peg(), O.round_peg()
+    # D0: MimicGen NutAssembly_D0 (pegs at robosuite's pegs_arena.xml positions; square nut x (-0.115, -0.11)
+    # y (0.11, 0.225), round nut y (-0.225, -0.11), z_rot (0, 2 pi)). D1 / D2 are SkillMimicGen's own; the
+    # paper's appendix gives their sizes (D1: nuts 0.23 x 0.51 random yaw, pegs 0.4 x 0.4 fixed yaw; D2:
+    # 0.5 x 0.5 for all, random yaw); we place them where MimicGen's Square_D1 / Square_D2 put the same sizes.
+    nut1, peg1 = _rs((-0.115, 0.115), (-0.255, 0.255), FULL), _rs((-0.1, 0.3), (-0.2, 0.2))
+    all2 = _rs((-0.25, 0.25), (-0.25, 0.25), FULL)
+    peg2 = _rs((-0.25, 0.25), (-0.25, 0.25), (0.0, PI / 2))
     table = {
-        "D0": {"square_peg": _fixed(0.64, 0.12), "round_peg": _fixed(0.64, -0.12),
-               "square_nut": Region((0.42, 0.425), (0.10, 0.215), FULL),
-               "round_nut": Region((0.42, 0.425), (-0.215, -0.10), FULL)},
-        "D1": {"square_peg": Region((0.58, 0.68), (0.02, 0.22)), "round_peg": Region((0.58, 0.68), (-0.22, -0.02)),
-               "square_nut": Region((0.38, 0.48), (-0.25, 0.25), FULL),
-               "round_nut": Region((0.38, 0.48), (-0.25, 0.25), FULL)},
-        "D2": {name: Region((0.38, 0.68), (-0.28, 0.28), FULL if "nut" in name else _deg(-45, 45))
-               for name in ("square_peg", "round_peg", "square_nut", "round_nut")},
+        "D0": {"square_peg": _fixed(*SQUARE_PEG_XY), "round_peg": _fixed(*ROUND_PEG_XY),
+               "square_nut": _rs((-0.115, -0.11), (0.11, 0.225), FULL),
+               "round_nut": _rs((-0.115, -0.11), (-0.225, -0.11), FULL)},
+        "D1": {"square_peg": peg1, "round_peg": peg1, "square_nut": nut1, "round_nut": nut1},
+        "D2": {"square_peg": peg2, "round_peg": peg2, "square_nut": all2, "round_nut": all2},
     }
     skills = (SkillSpec(0, "square_nut", "grasp_square_nut", "transit"),
               SkillSpec(1, "square_peg", "place_on_square_peg", "transfer", "square_nut"),
               SkillSpec(2, "round_nut", "grasp_round_nut", "transit"),
               SkillSpec(3, "round_peg", "place_on_round_peg", "transfer", "round_nut"))
-    return TaskSpec("NutAssembly", (sn, rn, sp, rp), skills, ("D0", "D1", "D2"), table,
-                    lambda p: nut_on_peg(sn, sp, p) and nut_on_peg(rn, rp, p))
+    return TaskSpec("NutAssembly", (sn, rn, sp, rp), skills, tuple(table), table,
+                    lambda s: nut_on_peg(sn, sp, s) and nut_on_peg(rn, rp, s))
+
+
+# MimicGen's needle points its tip along its body -y; ours along +x: our yaw = MimicGen z_rot - 90 deg.
+NEEDLE_YAW_OFFSET = -90.0
+
+
+def _needle(x, y, z_rot_deg) -> Region:
+    return _rs(x, y, _deg(z_rot_deg[0] + NEEDLE_YAW_OFFSET, z_rot_deg[1] + NEEDLE_YAW_OFFSET))
 
 
 def _threading() -> TaskSpec:
     nd, tp = O.needle(), O.tripod()
+    # MimicGen mimicgen/envs/robosuite/threading.py _get_initial_placement_bounds (needle sampled first):
+    # D0 needle x (-0.2, -0.05) y (0.15, 0.25) z_rot (-120, -60) deg, tripod fixed (0, -0.15) at 90 deg;
+    # D1 needle x (-0.2, 0.05) y (0.15, 0.25) z_rot (-210, 30), tripod x (-0.1, 0.15) y (-0.2, -0.1) z_rot (30, 150);
+    # D2 needle y (-0.25, -0.15), tripod y (0.1, 0.2) z_rot (-150, -30), the rest as D1.
     table = {
-        "D0": {"tripod": _fixed(0.58, 0.14, PI / 2), "needle": Region((0.44, 0.56), (-0.20, -0.12), _deg(60, 120))},
-        "D1": {"tripod": Region((0.48, 0.64), (0.10, 0.20), _deg(30, 150)),
-               "needle": Region((0.42, 0.62), (-0.22, -0.12), _deg(-30, 210))},
-        "D2": {"tripod": Region((0.48, 0.64), (-0.20, -0.10), _deg(-150, -30)),
-               "needle": Region((0.42, 0.62), (0.12, 0.22), _deg(-210, 30))},
+        "D0": {"needle": _needle((-0.2, -0.05), (0.15, 0.25), (-120, -60)), "tripod": _fixed(0.0, -0.15, PI / 2)},
+        "D1": {"needle": _needle((-0.2, 0.05), (0.15, 0.25), (-210, 30)),
+               "tripod": _rs((-0.1, 0.15), (-0.2, -0.1), _deg(30, 150))},
+        "D2": {"needle": _needle((-0.2, 0.05), (-0.25, -0.15), (-210, 30)),
+               "tripod": _rs((-0.1, 0.15), (0.1, 0.2), _deg(-150, -30))},
     }
     skills = (SkillSpec(0, "needle", "grasp_needle", "transit"),
               SkillSpec(1, "tripod", "thread_tripod", "transfer", "needle"))
-    return TaskSpec("Threading", (nd, tp), skills, ("D0", "D1", "D2"), table, lambda p: needle_through_ring(nd, tp, p))
+    return TaskSpec("Threading", (nd, tp), skills, tuple(table), table, lambda s: needle_through_ring(nd, tp, s))
 
 
 _BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_assembly, "Threading": _threading}

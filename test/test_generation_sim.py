@@ -57,8 +57,8 @@ def test_a_shard_draws_the_same_attempt_as_the_whole_run(square, tmp_path):
     """An attempt depends only on (seed, index): scene, source demos, noise and the planned
     motions (OMPL's RRT is reseeded per plan), so a shard executes exactly what the whole run
     executes for the same index, after a different history in its process."""
-    whole = _run(square, tmp_path / "whole", "clutter", attempts=2, seed=9)  # RRT around the obstacle
-    shard = _run(square, tmp_path / "shard", "clutter", attempts=1, seed=9, first_index=1)
+    whole = _run(square, tmp_path / "whole", "D1_clutter", attempts=2, seed=9)  # RRT around the obstacle
+    shard = _run(square, tmp_path / "shard", "D1_clutter", attempts=1, seed=9, first_index=1)
     r_whole, r_shard = whole.results[1], shard.results[0]
     assert r_whole.index == r_shard.index == 1
     assert r_whole.scene_seed == r_shard.scene_seed

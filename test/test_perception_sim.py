@@ -43,7 +43,7 @@ def test_every_object_within_tolerance(world, task):
 
 def test_clutter_obstacle_is_an_obstacle_not_an_object(world):
     spec = get_task("Square")
-    world.reset("Square", "clutter", 3)
+    world.reset("Square", "D1_clutter", 3)
     truth = {k: p.matrix() for k, p in world.object_poses().items()}
     res = estimate_poses(world.render("front").points_world, models_for_objects(spec.objects),
                          camera_position=FRONT_EYE)

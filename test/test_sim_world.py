@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from skillgen_ros.core.errors import InvalidInputError
 from skillgen_ros.core.geometry import Pose, rotation_angle
-from skillgen_ros.core.robot import ARM_JOINTS, V_MAX
+from skillgen_ros.core.robot import ARM_JOINTS, TABLE_Z, V_MAX
 from skillgen_ros.core.sim import SimWorld, TrajectoryCode, TrajectoryError
 from skillgen_ros.core.sim.camera import CameraConfig
 from skillgen_ros.core.tasks import scripted
@@ -113,7 +113,7 @@ def test_bad_osc_targets_rejected_robot_stays(world):
     assert np.linalg.norm(world.ee_pose().position - ee0.position) < 1e-3
     assert np.max(np.abs(world.joint_positions() - q0)) < 1e-3
     # slightly outside the workspace box (below the table top): clamped, not rejected
-    world.step(Pose([0.5, 0.0, -0.05], ee0.quaternion), -1.0)
+    world.step(Pose([0.5, 0.0, TABLE_Z - 0.05], ee0.quaternion), -1.0)
 
 
 def test_trajectory_tracking_and_rejections(world):
@@ -155,9 +155,9 @@ def test_cameras_see_the_objects(world):
         o = next(o for o in scene.objects if o.id == oid)
         local = p.rotation.inv().apply(pts - p.position)
         assert np.any(np.all(np.abs(local) <= np.asarray(o.half_extents) + 0.005, axis=1)), oid
-    # the table top is at z = 0 in the front camera's cloud
+    # the table top is at z = TABLE_Z in the front camera's cloud
     table = pts[(np.abs(pts[:, 1]) < 0.1) & (np.abs(pts[:, 0] - 0.75) < 0.05)]
-    assert len(table) and np.median(np.abs(table[:, 2])) < 0.001
+    assert len(table) and np.median(np.abs(table[:, 2] - TABLE_Z)) < 0.001
 
 
 def test_depth_noise_model():
@@ -177,8 +177,9 @@ def test_contact_queries(world):
     peg = world.object_poses()["square_peg"]
     assert not world.robot_in_collision_with(["square_peg", "square_nut"])
     top = world.ee_pose()
-    above = Pose([*peg.position[:2], 0.2], top.quaternion)
-    into = Pose([*peg.position[:2], 0.07], top.quaternion)
+    peg_top = peg.position[2] + world.task.object("square_peg").half_extents[2]
+    above = Pose([*peg.position[:2], peg_top + 0.1], top.quaternion)
+    into = Pose([*peg.position[:2], peg_top - 0.03], top.quaternion)
     for _ in range(25):
         world.step(above, 1.0)
     for _ in range(25):
@@ -194,7 +195,8 @@ def test_the_hand_feels_what_it_presses_on(world):
     np.testing.assert_array_equal(world.ee_wrench(), np.zeros(6))
     peg = world.object_poses()["square_peg"]
     top = world.ee_pose()
-    for z in (0.2, 0.07):
+    peg_top = peg.position[2] + world.task.object("square_peg").half_extents[2]
+    for z in (peg_top + 0.1, peg_top - 0.03):
         for _ in range(25):
             world.step(Pose([*peg.position[:2], z], top.quaternion), 1.0)
     w = world.ee_wrench()

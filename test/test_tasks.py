@@ -7,7 +7,8 @@ from scipy.spatial.transform import Rotation
 
 from skillgen_ros.core.errors import InvalidInputError, UnknownTaskError, UnknownVariantError
 from skillgen_ros.core.geometry import Pose
-from skillgen_ros.core.tasks import TASK_NAMES, get_task, regions_markdown, validate_seed
+from skillgen_ros.core.robot import TABLE_Z
+from skillgen_ros.core.tasks import TASK_NAMES, SceneState, get_task, regions_markdown, validate_seed
 from skillgen_ros.core.tasks import objects as O
 from skillgen_ros.core.tasks.shapes import read_obj
 from skillgen_ros.core.tasks.spec import SEPARATION_MARGIN
@@ -19,8 +20,9 @@ def test_registry_and_skills():
     assert set(TASK_NAMES) == {"Square", "PickPlace", "NutAssembly", "Threading"}
     assert {t: len(get_task(t).skills) for t in TASK_NAMES} == {"Square": 2, "PickPlace": 2, "NutAssembly": 4,
                                                                  "Threading": 2}
-    assert "clutter" in get_task("Square").variants and "clutter" in get_task("PickPlace").variants
-    assert "clutter" not in get_task("Threading").variants
+    assert get_task("Square").variants == ("D0", "D1", "D2", "D1_clutter", "D2_clutter")  # the paper's
+    assert "clutter" in get_task("PickPlace").variants  # ours (PickPlace is not a paper task)
+    assert not any("clutter" in v for v in get_task("Threading").variants + get_task("NutAssembly").variants)
     with pytest.raises(UnknownTaskError) as e:
         get_task("Coffee")
     assert e.value.reason == "UNKNOWN_TASK"
@@ -32,15 +34,10 @@ def test_registry_and_skills():
         for s in spec.skills:
             assert s.object_id in ids and s.mode in ("transit", "transfer")
             assert (s.mode == "transfer") == (s.attached_object is not None)
-    assert [o.id for o in get_task("Square").objects_for("clutter")][-1] == "obstacle"
-
-
-def test_sizes_from_the_issue():
-    assert O.square_peg().half_extents[0] * 2 == pytest.approx(0.032)
-    assert O.round_peg().half_extents[0] * 2 == pytest.approx(0.04)
-    assert 2 * O.SQUARE_HOLE_HALF == pytest.approx(0.046) and 2 * O.ROUND_HOLE_RADIUS == pytest.approx(0.068)
-    clearance = O.RING_OPENING_HALF - O.NEEDLE_SHAFT_HALF
-    assert 0.008 <= clearance <= 0.012
+    for v in ("D1_clutter", "D2_clutter"):
+        assert [o.id for o in get_task("Square").objects_for(v)][-1] == "obstacle"
+        assert get_task("Square").regions(v)["square_peg"] == get_task("Square").regions(v[:2])["square_peg"]
+    assert "obstacle" not in {o.id for o in get_task("Square").objects_for("D1")}
 
 
 @pytest.mark.parametrize("name", TASK_NAMES)
@@ -64,14 +61,14 @@ def test_200_resets_inside_documented_regions(task, variant):
         poses = spec.sample_reset(variant, rng)
         assert set(poses) == {o.id for o in spec.objects_for(variant)}
         for oid, p in poses.items():
-            assert regions[oid].contains(p), (oid, p)
-            assert p.position[2] == pytest.approx(spec.object(oid).half_extents[2])
+            assert regions[oid].contains(p, obj=spec.object(oid)), (oid, p)
+            assert p.position[2] == pytest.approx(TABLE_Z + spec.object(oid).half_extents[2])
         items = list(poses.items())
         for i, (a, pa) in enumerate(items):
             for b, pb in items[i + 1:]:
                 gap = np.hypot(*(pa.position[:2] - pb.position[:2]))
                 assert gap >= spec.object(a).footprint_radius + spec.object(b).footprint_radius + SEPARATION_MARGIN - 1e-9
-        assert not spec.is_success(poses)
+        assert not spec.is_success(SceneState(poses, np.array([0.46, 0.0, 0.3])))
 
 
 def test_same_seed_same_reset_and_region_table_documented():
@@ -98,35 +95,15 @@ def _yaw(yaw):
     return Rotation.from_euler("z", yaw).as_quat()
 
 
-def test_success_predicates_on_constructed_poses():
-    sq = get_task("Square")
-    peg = Pose([0.6, 0.1, 0.05], _yaw(0.0))
-    nut_ring = O.square_nut().keypoint("ring_center")
-    on = Pose(np.array([0.6, 0.1, 0.01]) - nut_ring, _yaw(0.0))
-    above = Pose(np.array([0.6, 0.1, 0.2]) - nut_ring, _yaw(0.0))
-    beside = Pose(np.array([0.7, 0.1, 0.01]) - nut_ring, _yaw(0.0))
-    assert sq.is_success({"square_nut": on, "square_peg": peg})
-    assert not sq.is_success({"square_nut": above, "square_peg": peg})
-    assert not sq.is_success({"square_nut": beside, "square_peg": peg})
-
+def test_pick_place_success_on_constructed_poses():
     pp = get_task("PickPlace")
     bin_ = Pose([0.55, 0.2, 0.03], _yaw(0.3))
-    assert pp.is_success({"milk": Pose([0.56, 0.21, 0.065], _yaw(0.0)), "bin": bin_})
-    assert not pp.is_success({"milk": Pose([0.56, -0.1, 0.055], _yaw(0.0)), "bin": bin_})
-    assert not pp.is_success({"milk": Pose([0.56, 0.21, 0.30], _yaw(0.0)), "bin": bin_})
-
-    th = get_task("Threading")
-    tripod = Pose([0.55, 0.15, O.tripod().half_extents[2]], _yaw(np.pi / 2))   # ring axis = world +y
-    ring = tripod.rotation.apply(O.tripod().keypoint("ring_center")) + tripod.position
-    nd = O.needle()
-    through = Pose(ring - Rotation.from_euler("z", np.pi / 2).apply(nd.keypoint("tip") - [0.05, 0, 0]),
-                   _yaw(np.pi / 2))
-    short = Pose(ring - Rotation.from_euler("z", np.pi / 2).apply(nd.keypoint("tip") + [0.02, 0, 0]),
-                 _yaw(np.pi / 2))
-    missed = Pose(through.position + [0.0, 0.0, 0.03], through.quaternion)
-    assert th.is_success({"needle": through, "tripod": tripod})
-    assert not th.is_success({"needle": short, "tripod": tripod})
-    assert not th.is_success({"needle": missed, "tripod": tripod})
+    far = np.array([0.4, 0.0, 0.4])
+    assert pp.is_success(SceneState({"milk": Pose([0.56, 0.21, 0.065], _yaw(0.0)), "bin": bin_}, far))
+    assert not pp.is_success(SceneState({"milk": Pose([0.56, -0.1, 0.055], _yaw(0.0)), "bin": bin_}, far))
+    assert not pp.is_success(SceneState({"milk": Pose([0.56, 0.21, 0.30], _yaw(0.0)), "bin": bin_}, far))
+    with pytest.raises(InvalidInputError):
+        pp.is_success({"milk": bin_, "bin": bin_})  # a bare pose map: the rule needs the EE too
 
 
 def test_object_lookup_errors():

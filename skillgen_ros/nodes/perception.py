@@ -12,7 +12,7 @@ minus its stamp (use_sim_time with a lockstep driver).
 
 Which objects to look for comes from the scene's task: parameter `task` (settable at run time with
 `ros2 param set`), or a std_msgs/String on `perception/set_task` (reliable, transient local;
-"Square" or "Square/clutter") that the orchestrator publishes after each reset_scene. Without a
+"Square" or "Square/D1_clutter") that the orchestrator publishes after each reset_scene. Without a
 task the service answers NO_SCENE.
 
 mode = "estimate" (default) estimates from the cloud. mode = "ground_truth" answers with the sim's

@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 from ..geometry import Pose
 from ..robot import ARM_JOINTS, TABLE_Z
 from ..tasks import get_task
-from ..tasks.scripted import ScriptParams
+from ..tasks.scripted import MAX_EE_YAW, ScriptParams
 from .motion import DemoStyle, SmoothNoise, down_pose, ee_yaw, nearest_yaw, object_yaw, reach
 from .record import DemoRollout, DemoStep
 
@@ -121,7 +121,7 @@ class ScriptedDemonstrator:
         self.lift(world, 0.20 + self.rng.uniform(0.0, 0.04))
         T_en = self.object_in_hand(world, nut_id)
         nut, peg = self.frames(world)[nut_id], self.frames(world)[peg_id]
-        yaw = object_yaw(nut) if period is None else nearest_yaw(object_yaw(peg), period, object_yaw(nut))
+        yaw = self._place_yaw(nut_spec, nut, peg, period)
         R = Rotation.from_euler("z", yaw)
         ring = R.apply(nut_spec.keypoint("ring_center"))
         top = peg.rotation.apply(peg_spec.keypoint("top")) + peg.position
@@ -142,6 +142,22 @@ class ScriptedDemonstrator:
         self.carry_object_to(world, nut_id, release, T_en, 1.0, tremor=0.2)
         self.gripper(world, OPEN, 0.5)
         self.retreat(world)
+
+    def _place_yaw(self, nut_spec, nut: Pose, peg: Pose, period: float | None) -> float:
+        """The nut yaw a person would place with: the peg's symmetry (any yaw on a round peg), turning
+        the wrist at most 135 deg, handle (and so the hand) as close to the robot as it can be: on
+        robosuite's pegs, 0.79 m out, a handle pointing away puts the hand out of the Panda's reach."""
+        y0, e0 = object_yaw(nut), ee_yaw(self.cmd)
+        base = y0 if period is None else nearest_yaw(object_yaw(peg), period, y0)
+        step = np.pi / 4 if period is None else period
+        handle = nut_spec.keypoint("handle") - nut_spec.keypoint("ring_center")
+
+        def cost(y: float) -> float:
+            reach_xy = peg.position[:2] + Rotation.from_euler("z", y).apply(handle)[:2]
+            wrist = abs(e0 + (y - y0))
+            return float(np.linalg.norm(reach_xy)) + 0.01 * abs(y - y0) + (10.0 if wrist > MAX_EE_YAW else 0.0)
+        cands = [base + k * step for k in range(-4, 5) if abs(base + k * step - y0) <= np.radians(135) + 1e-9]
+        return min(cands, key=cost)
 
     def _grasp_nut(self, world, nut_id: str) -> None:
         nut = self.task.object(nut_id)

@@ -1,13 +1,13 @@
 """Simulated Panda (pybullet): world, torque-level OSC, joint-trajectory tracking, gripper, RGB-D.
 
 Frames (all right-handed, metres, quaternions xyzw):
-- world: z up; the Panda base (panda_link0) at the origin; the table top is the plane z = TABLE_Z (0).
-  The robot faces +x; objects live at roughly x 0.38..0.70, y -0.30..0.30.
+- world: z up; the Panda base (panda_link0) at the origin; the table top is the plane z = TABLE_Z (-0.092, robosuite's mounting: core/robot.py).
+  The robot faces +x; the table spans x 0.16..0.96, y -0.40..0.40; objects live at roughly x 0.31..0.86.
 - EE: panda_grasptarget (0.105 m along panda_hand z, between the fingertips); z points out of the
   gripper, the fingers close along its y axis.
 - object frames: origin at the centre of the object's bounding box, z up at rest (core/tasks/spec.py).
 - camera frames are optical frames (z forward, x right, y down in the image):
-  "front" is fixed at FRONT_EYE = (1.35, 0, 0.70) looking at (0.52, 0, 0.02);
+  "front" is fixed at FRONT_EYE = (1.35, 0, 0.70) looking at (0.56, 0, -0.07);
   "wrist" is on panda_hand at (0.065, 0, 0.03), optical axis along hand z tilted 20 deg toward the
   fingers, image x along hand y. CameraFrame.T_world_camera maps optical -> world.
 

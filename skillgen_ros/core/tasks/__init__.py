@@ -1,4 +1,4 @@
-"""Task suite: object specs and meshes, reset distributions (D0/D1/D2/clutter), success, skills.
+"""Task suite: object specs and meshes, reset distributions (D0/D1/D2, clutter variants), success, skills.
 
 Pure (no pybullet, no rclpy): the mock driver, perception and the planner import it freely.
 """

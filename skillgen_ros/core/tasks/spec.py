@@ -1,4 +1,4 @@
-"""Typed task descriptions: objects, skills, reset regions (D0/D1/D2/clutter), scene description.
+"""Typed task descriptions: objects, skills, reset regions (D0/D1/D2, clutter variants), scene description.
 
 A task is data (objects with meshes, a skill list, per-variant reset regions) plus one success
 predicate over a SceneState (true object poses + the EE position + the gripper command). Keeping the

@@ -167,7 +167,8 @@ def test_depth_noise_model():
         w.reset("Square", "D0", 1)
     a, b = noisy.render("front").depth, clean.render("front").depth
     both = np.isfinite(a) & np.isfinite(b)
-    assert 0.05 < np.mean(np.isnan(a) & np.isfinite(b)) < 0.15
+    # dropout (10%) among the pixels that have a return (robosuite's 0.8 m table leaves some without one)
+    assert 0.05 < np.mean(np.isnan(a[np.isfinite(b)])) < 0.15
     assert 0.001 < np.std(a[both] - b[both]) < 0.02
     noisy.close(), clean.close()
 

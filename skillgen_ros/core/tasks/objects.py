@@ -47,6 +47,11 @@ NEEDLE_HANDLE_HALF = 0.02
 # 0.012]. total_size (0.05, 0.05, 0.1); ring cells centred 0.078..0.098 above the body origin (ring centre
 # 0.088), i.e. 0.188 above the table; post 0.005 half on a 0.1 x 0.1 x 0.01 plate at z -0.02..-0.01; three
 # capsule legs (r 0.01, half 0.03) tilted 30 deg.
+MIMICGEN_DENSITY = 100.0   # needle.py / ring_tripod.py base_args "density": 100.0 (kg/m^3)
+# ring_tripod.py: ring geoms friction (0.3, 5e-3, 1e-4), "low friction to ensure easy insertion" (needle.py gives
+# its shaft 0.3 too). MuJoCo takes the larger of two frictions, Bullet their product: the ring's 0.3 against
+# the needle's 1.0 (its handle is grasped) gives the reference's 0.3 at the ring.
+RING_FRICTION = 0.3
 RING_UNIT = (0.005, 0.002, 0.002)
 RING_SIZE = (0.005, 0.012, 0.012)            # ring_size: RING_SIZE[1] is MimicGen's success radius
 RING_OPENING_HALF = RING_SIZE[1] - 2 * RING_UNIT[1]   # 0.008: 1.6 cm hole
@@ -143,7 +148,8 @@ def needle(obj_id: str = "needle") -> ObjectSpec:
     parts = (box(h, h, h), box(L, s, s, x=h + L))
     kp = {"handle": (0, 0, 0), "shaft_base": (h, 0, 0), "shaft_center": (h + L, 0, 0), "tip": (h + 2 * L, 0, 0),
           "body_origin": ((2 * h + 2 * L) / 2 - h, 0, 0)}  # MimicGen's body origin: the 16 cm box's centre
-    return _build(obj_id, "needle", parts, kp, fixture=False, symmetry="none", mass=0.03,
+    mass = MIMICGEN_DENSITY * sum(8 * float(np.prod(p.size)) for p in parts)   # 7.6 g
+    return _build(obj_id, "needle", parts, kp, fixture=False, symmetry="none", mass=mass,
                   color=(0.8, 0.15, 0.15, 1.0))
 
 
@@ -170,7 +176,7 @@ def tripod(obj_id: str = "tripod") -> ObjectSpec:
              box(TRIPOD_HALF[0], TRIPOD_HALF[1], 0.005, z=-0.015)] + _tripod_legs()
     kp = {"ring_center": (0, 0, zc), "body_origin": (0, 0, 0)}
     return _build(obj_id, "tripod", tuple(parts), kp, fixture=True, symmetry="none",
-                  mass=0.0, color=(0.2, 0.6, 0.25, 1.0))
+                  mass=0.0, color=(0.2, 0.6, 0.25, 1.0), friction=RING_FRICTION)
 
 
 @lru_cache(maxsize=None)

@@ -28,7 +28,10 @@ def test_observations_carry_the_periods_wrench(env):
     assert peg.has_pose
     top = Pose.from_array(obs.ee_pose)
     xy = [peg.pose.position.x, peg.pose.position.y]
-    for z in (0.2, 0.07):
+    from skillgen_ros.core.tasks import get_task
+
+    peg_top = peg.pose.position.z + get_task("Square").object("square_peg").half_extents[2]
+    for z in (peg_top + 0.1, peg_top - 0.03):  # above the peg, then pressing 3 cm into its top
         for _ in range(25):
             obs = env.step(Pose([*xy, z], top.quaternion), 1.0)
     assert obs.ee_wrench[2] > 5.0  # the peg pushes the hand up

@@ -24,7 +24,7 @@ def _box(name, xyz, half):
 @pytest.fixture(scope="module")
 def setup():
     kin = PandaKinematics()
-    cm = CollisionModel(kin)
+    cm = CollisionModel(kin, table_z=0.0)  # these scenes stand on a table whose top is z = 0 (the sim's: TABLE_Z)
     return kin, cm, MotionPlanner(kin, IKSolver(kin, rng=0), cm, seed=1)
 
 

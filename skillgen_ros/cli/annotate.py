@@ -36,7 +36,9 @@ def _kp(task: str, oid: str, name: str) -> list[float]:
 def _task_rules(task: str) -> dict:
     """Per-task proposal rules, matched to how demos approach each skill object (docs/source_demos.md)."""
     nut = lambda i, n: {i: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, n, "handle")}}  # noqa
-    peg = lambda i, p: {i: {"start_distance": 0.12, "post_steps": 5, "offset": _kp(task, p, "top")}}  # noqa
+    # a placement ends 30 steps (1.5 s) after the open: the fingers have opened and the hand has backed off
+    # most of its 10 cm, so the wrist is clear of robosuite's 13 cm peg when the next motion is planned
+    peg = lambda i, p: {i: {"start_distance": 0.12, "post_steps": 30, "offset": _kp(task, p, "top")}}  # noqa
     if task == "Square":
         return {"skills": {**nut(0, "square_nut"), **peg(1, "square_peg")}}
     if task == "NutAssembly":

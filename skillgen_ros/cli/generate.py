@@ -32,7 +32,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--first-index", type=int, default=0)
     p.add_argument("--augment", action="store_true", help="initiation augmentation (t=0.08 m, r=80 deg)")
-    p.add_argument("--selection", default="random", help="random (paper) or nearest (MimicGen)")
+    p.add_argument("--selection", default="random",
+                   help="skillgen: random (paper) or nearest_neighbor; mimicgen uses its task config's (mimicgen.py)")
     p.add_argument("--source-demos", default="", help="directory of source bags (default bags/<task>)")
     p.add_argument("--output", default="", help="output directory (default out/<task>_<variant>_<method>_seed<seed>)")
     p.add_argument("--no-bag", action="store_true", help="do not record the session to MCAP")

@@ -204,7 +204,7 @@ def cell_rows() -> list[str]:
 
 def render() -> str:
     lines = [START, "", "| measure | ours (current) | paper / anchor | bench/results |", "|---|---|---|---|"]
-    lines += [f"| {a} | {b} | {c} | `{d}.json` |" for a, b, c, d in rows()]
+    lines += [f"| {a} | {b} | {c} | `{DATAGEN if d == 'datagen' else d}.json` |" for a, b, c, d in rows()]
     cells = cell_rows()
     if cells:
         lines += [""] + cells

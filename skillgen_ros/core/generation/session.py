@@ -185,6 +185,6 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
         paths["video"] = out.video_path
     if write_report and out.results:
         summary = RunSummary.from_results(req.task, req.variant, req.method, out.results, req.augment,
-                                          out.wall_seconds, paths)
+                                          out.wall_seconds, paths, profile=cfg.profile)
         out.report_path = _write_report(req.output_dir, [summary])
     return out

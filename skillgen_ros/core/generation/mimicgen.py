@@ -39,6 +39,7 @@ before the skill): the skill's object does not move in a source demo before its 
 """
 from __future__ import annotations
 
+import time
 from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Sequence
 
@@ -222,7 +223,11 @@ def run_mimicgen(at: "_Attempt") -> None:
                               i == 0, spec)
         goal7 = matrix_to_array(w.targets[int(w.interpolating.sum()) - 1 if w.interpolating.any() else 0])
         for T, g, sigma, interp in zip(w.targets, w.gripper, w.noise, w.interpolating):
+            t = time.perf_counter()
             at._step(T, float(g), float(sigma), StepLabel(bool(interp), skill.index, j, goal7))
+            at._timed("motion" if interp else "skill", t)
+            t = time.perf_counter()
             if not at.success_seen and at.env.task_success():
                 at.success_seen = True
+            at._timed("success", t)
         last_target = w.targets[-1]

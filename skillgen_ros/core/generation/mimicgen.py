@@ -1,6 +1,7 @@
 """The MimicGen baseline, as NVlabs/mimicgen generates (Mandlekar et al., 2023).
 
-Followed line by line (NVlabs/mimicgen, commit 71c5e6c):
+Followed line by line (NVlabs/mimicgen as read: datagen/* at 71c5e6c, utils/file_utils.py at 08d0fb2,
+scripts/generate_core_configs.py at 33fcab6, exps/templates/robosuite/*.json at 7004c1b / 14fc947):
 - subtasks: `mimicgen/utils/file_utils.py` parse_source_dataset: subtask i ends one step after its
   termination signal first reads 1 (`end_ind + 1`) and the next starts there; the last ends with
   the demo. `mimicgen/datagen/data_generator.py` randomize_subtask_boundaries: each end but the
@@ -78,7 +79,8 @@ class MimicGenSpec:
 
 # generate_core_configs.py make_generators(): square and nut_assembly use nearest_neighbor_object
 # with nn_k=3 and offsets [10, 20]; threading random with [5, 10]; pick_place (robosuite's four-object
-# task, ours has one object) nearest_neighbor_object nn_k=3, [10, 20], select_src_per_subtask=True.
+# task, ours has one object) nearest_neighbor_object nn_k=3, [10, 20], select_src_per_subtask=True; its
+# place subtasks have no object_ref (robosuite's bins are fixed), ours moves with the bin (D2 moves it).
 MIMICGEN_SPECS: dict[str, MimicGenSpec] = {
     "Square": MimicGenSpec((10, 20), "nearest_neighbor_object", 3),
     "NutAssembly": MimicGenSpec((10, 20), "nearest_neighbor_object", 3),

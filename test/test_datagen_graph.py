@@ -2,6 +2,7 @@
 sim_driver (lockstep) + skill_replay in one container, perception (estimate), planner, datagen, driven through
 the `generate` action with SkillGenClient. One graph serves the module's tests.
 """
+import json
 import shutil
 import signal
 import time
@@ -68,6 +69,8 @@ def test_bad_requests_are_rejected_with_a_reason(graph, tmp_path):
         (dict(method="teleport"), "UNKNOWN_METHOD"),
         (dict(attempts=0), "INVALID_ATTEMPTS"),
         (dict(initiation_candidates=-2), "INVALID_PARAMETER"),
+        (dict(profile="fastest"), "UNKNOWN_PROFILE"),
+        (dict(profile="paper", initiation_candidates=6), "INVALID_PARAMETER"),  # the paper tries one pose
         (dict(output_dir="/proc/skillgen_cannot_write_here"), "UNWRITABLE_OUTPUT"),
         (dict(output_dir=str(existing)), "OUTPUT_EXISTS"),
         (dict(source_demos=str(tmp_path / "empty")), "NO_SOURCE_DEMOS"),
@@ -115,6 +118,8 @@ def test_seeded_attempts_produce_a_valid_robomimic_dataset(graph, tmp_path):
     assert summary.num_demos == res.successes
     with h5py.File(res.dataset_path, "r") as f:
         assert "env_args" in f["data"].attrs and f["data"].attrs["total"] > 0
+        gen = json.loads(f["data"].attrs["env_args"])["generation"]  # no goal profile: the node's parameter
+        assert gen["profile"] == "skillgen_ros" and gen["planner_extras"] is True and gen["initiation_candidates"] == 6
         demo = f["data"][sorted(f["data"].keys())[0]]
         for key in ("obs/robot0_eef_pos", "obs/robot0_eef_quat", "obs/robot0_gripper_qpos", "obs/robot0_joint_pos",
                     "obs/square_nut_pose", "obs/square_peg_pose", "actions", "actions_abs", "states", "rewards",
@@ -147,12 +152,30 @@ def test_skill_replay_loads_demos_ahead_and_says_why_not(graph, tmp_path):
         assert not unknown.success and unknown.reason_code == "UNKNOWN_TASK", unknown.reason_code
 
 
-def test_no_video_attempts_means_no_mp4(graph, tmp_path):
+def _generation_args(out: Path) -> dict:
+    import json
+
+    path = out / ("demo.hdf5" if (out / "demo.hdf5").exists() else "failed.hdf5")
+    with h5py.File(path, "r") as f:
+        return json.loads(f["data"].attrs["env_args"])["generation"]
+
+
+def test_no_video_attempts_means_no_mp4_and_a_goal_picks_the_paper_profile(graph, tmp_path):
     _, _, client = graph
     out = tmp_path / "novideo"
-    res = _run(client, attempts=1, output_dir=str(out), video_attempts=0)
+    res = _run(client, attempts=1, output_dir=str(out), video_attempts=0, profile="paper")
     assert res.accepted and res.attempts == 1, res.message
     assert not (out / "attempts.mp4").exists()
+    gen = _generation_args(out)  # the goal's profile, applied over the graph (PlanToPose.extras false)
+    assert gen["profile"] == "paper" and gen["initiation_candidates"] == 1
+    assert gen["planner_extras"] is False and gen["release_moves"] is False and gen["check_collisions"] is False
+
+
+def test_a_bad_profile_parameter_stops_datagen_with_a_reason(start_node):
+    proc = start_node("datagen", "--ros-args", "-p", "profile:=fastest")
+    assert proc.proc.wait(timeout=120) == 2
+    out = proc.stop()
+    assert "INVALID_PARAMETER" in out and "unknown profile" in out
 
 
 def test_killed_perception_fails_attempts_with_a_reason_and_the_run_goes_on(graph, tmp_path):

@@ -79,20 +79,6 @@ def test_augmentation_adds_recovery(demos):
                                atol=1e-9)
 
 
-def test_mimicgen_interpolation_steps(demos):
-    r = run_attempt(FakeWorld(), demos, TASK, "mimicgen", 0, 5, GenerationConfig(variant="D1", fixed_steps=2))
-    mp = r.episode.labels["mp_step"].astype(bool)
-    d = demos[r.source_demos[0]]
-    assert mp.sum() == 2 * (1 + 5 + 1 + 2)  # start pose, 5 interpolation, the segment start, 2 fixed; per skill
-    # the second skill's interpolation starts from the first skill's last (noise-free) target
-    from skillgen_ros.core.geometry import Pose
-    second = np.flatnonzero(mp)[9]
-    T_cube = Pose.from_array(r.episode.obs["cube_pose"][0]).matrix()  # the cube sits still until grasped
-    expected = (T_cube @ d.skills[0].actions_in_object[-1])[:3, 3]
-    np.testing.assert_allclose(r.episode.actions_abs[second, :3], expected, atol=1e-9)
-    assert r.episode.num_samples == mp.sum() + sum(s.num_steps - 1 for s in d.skills)
-
-
 def test_replay_noise_uses_source_initial_state(demos):
     env = FakeWorld()
     r = run_attempt(env, demos, TASK, "replay_noise", 0, 5, CFG)

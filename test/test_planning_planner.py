@@ -188,6 +188,8 @@ def test_start_with_the_hand_against_a_fixture_backs_out_along_the_retreat(setup
         res = planner.plan(q0, target, timeout=5.0)
         assert res.ok, res.message
         assert "touches block" in res.message
+        off = planner.plan(q0, target, timeout=2.0, extras=False)  # the paper profile: no back-out
+        assert off.status is PlanStatus.START_IN_COLLISION and "extras off" in off.message
         a, b = next((a, b) for name, a, b in res.segments if name == "retreat")
         rise = kin.fk(res.joint_path[b])[2, 3] - kin.fk(q0)[2, 3]
         assert rise == pytest.approx(planner.retreat_distance, abs=2e-3)  # straight up, 5 cm
@@ -216,6 +218,8 @@ def test_start_with_the_elbow_grazing_an_obstacle_escapes_in_the_null_space(setu
         res = planner.plan(q0, Pose([0.45, -0.25, 0.3], DOWN), timeout=5.0)
         assert res.ok, res.message
         assert "null space" in res.message
+        off = planner.plan(q0, Pose([0.45, -0.25, 0.3], DOWN), timeout=2.0, extras=False)
+        assert off.status is PlanStatus.START_IN_COLLISION and "extras off" in off.message
         k = next(i for i, q in enumerate(res.joint_path) if not cm.in_collision(q[None])[0])
         assert k >= 1 and np.abs(res.joint_path[k] - q0).max() <= 0.5
         T0 = kin.fk(q0)
@@ -240,6 +244,8 @@ def test_a_wrist_at_its_limit_moves_in_the_null_space_before_the_retreat(setup):
     res = planner.plan(q0, target, Mode.TRANSFER, attached=plate, start_support="table", timeout=5.0)
     assert res.ok, res.message
     assert "null space first" in res.message
+    off = planner.plan(q0, target, Mode.TRANSFER, attached=plate, start_support="table", timeout=2.0, extras=False)
+    assert off.status is PlanStatus.START_IN_COLLISION and "extras off" in off.message
     a, b = next((a, b) for name, a, b in res.segments if name == "retreat")
     ee = kin.fk_batch(res.joint_path[a:b + 1])[:, :3, 3]
     k = int(np.argmax(np.linalg.norm(ee - T0[:3, 3], axis=1) > 1e-3))  # where the line starts

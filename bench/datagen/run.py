@@ -1,27 +1,35 @@
-"""bench/datagen: generation success per task/variant/method, throughput, graph overhead, perception cost.
+"""bench/datagen: generation success per task/variant/method/profile, throughput, graph overhead, perception cost.
 
-Rerun (full protocol, hours on 2 cores):
+Cells: every task variant (core/tasks) x method (skillgen, mimicgen, skillgen+IA) under the `paper`
+algorithm profile (core/generation/profile.py: the paper's Algorithm 1), and skillgen, skillgen+IA
+again under `skillgen_ros` (ours: initiation candidates, release moves, planner start repairs,
+collision filter) as their own columns. MimicGen and Replay-Noise have nothing a profile changes:
+they run once (recorded under `paper`). Every method and profile of a cell uses the same seed, so the
+same scenes. Each finished cell is written to the JSON at once; a rerun skips cells already there
+with the same attempts and seed (resumable; --force reruns them). Each cell records its profile
+and the initiation candidates its attempts used.
+
+Full protocol (about 2 h on 2 cores; see the README for the last measured duration):
     .venv/bin/python bench/datagen/run.py --attempts 200 --workers 2
-Quick look (minutes):
-    .venv/bin/python bench/datagen/run.py --quick
-One part again, updating the JSON in place (e.g. the graph overhead: 3 pairs of 50 attempts):
+Smoke (minutes): two cells, both profiles, all methods, into its own JSON:
+    .venv/bin/python bench/datagen/run.py --attempts 10 --workers 2 --tasks Square Threading --variants D0 D1 \
+        --skip-extras --out bench/results/datagen_smoke.json
+Only some cells again (the others and the extras stay as they are in the JSON):
+    .venv/bin/python bench/datagen/run.py --attempts 200 --workers 2 --methods skillgen+IA --profiles paper --force
+One extra part again, updating the JSON in place (e.g. the graph overhead: 3 pairs of 50 attempts):
     .venv/bin/python bench/datagen/run.py --only graph_overhead
-Some methods' cells again (the others and the extras stay as they are in the JSON):
-    .venv/bin/python bench/datagen/run.py --attempts 200 --workers 2 --methods skillgen skillgen+IA
-The D0 cells on other seeds, each into its own JSON (a check that a cell's gap to the paper is not
-noise; the README pools seeds 1000-4000), ~6 min per seed:
-    for s in 2000 3000 4000; do .venv/bin/python bench/datagen/run.py --workers 2 --seed $s \
+The D0 cells on other seeds, each into its own JSON (a check that a cell's gap to the paper is not noise):
+    for s in 2000 3000 4000; do .venv/bin/python bench/datagen/run.py --workers 2 --seed $s --skip-extras \
         --tasks Square NutAssembly --variants D0 --methods skillgen --out bench/results/datagen_seed$s.json; done
 An A/B of the planned motions' speed (cells only; a separate JSON so the table stays one setting):
     .venv/bin/python bench/datagen/run.py --seed 3000 --tasks NutAssembly --variants D0 --methods skillgen \
-        --velocity-scale 1.0 --out bench/results/datagen_vs10_seed3000.json
-(the default is SimEnvConfig's 0.7; drop --velocity-scale for the other side of the pair)
+        --velocity-scale 1.0 --skip-extras --out bench/results/datagen_vs10_seed3000.json
 
 Success cells run in-process (SimGenerationEnv: the same Algorithm 1, dataset writer and seeds as
 the datagen node) with fixed seeds; the graph-overhead cell runs the same attempts through the
 ROS graph (sim_driver lockstep, perception, planner, skill_replay, datagen) and in-process, in
 the same run, and reports the ratio. Throughput is successful demos per hour per CPU core, from
-the CPU time of the process that ran the cell. Writes bench/results/datagen.json.
+the CPU time of the process that ran the cell. Aggregates: bench/datagen/summary.py.
 """
 from __future__ import annotations
 
@@ -31,26 +39,33 @@ import os
 import sys
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from bench.machine import machine_info
+from bench.datagen.summary import PROFILE_FREE, cell_key, summarize  # noqa: E402
+from bench.machine import machine_info  # noqa: E402
 
-CELLS_FULL = {
-    "Square": ["D0", "D1", "D2", "clutter"],
-    "PickPlace": ["D0", "D1", "D2", "clutter"],
-    "NutAssembly": ["D0", "D1", "D2"],
-    "Threading": ["D0", "D1", "D2"],
-}
+TASKS = ("Square", "PickPlace", "NutAssembly", "Threading")
 METHODS = [("skillgen", False), ("mimicgen", False), ("skillgen", True)]
+PROFILES = ("paper", "skillgen_ros")
+
+
+def task_variants(task: str) -> list[str]:
+    """A task's variants as the task suite defines them (core/tasks/suite.py), so renamed or added
+    variants (e.g. Square's D1_clutter / D2_clutter) are benchmarked without editing this file."""
+    from skillgen_ros.core.tasks import get_task
+
+    return list(get_task(task).variants)
 
 
 def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int, seed: int,
-             perception: str, images: bool = False, velocity_scale: float | None = None) -> dict:
-    """One (task, variant, method) cell in this process; returns counts, CI and timings.
-    velocity_scale None: SimEnvConfig's default (the same as graphs.yaml's planner)."""
+             perception: str, images: bool = False, velocity_scale: float | None = None,
+             profile: str = "skillgen_ros") -> dict:
+    """One (task, variant, method, profile) cell in this process; returns counts, CI, timings and the
+    initiation candidates used. velocity_scale None: SimEnvConfig's default (graphs.yaml's planner)."""
     from skillgen_ros.core.dataset.paper import paper_rate
     from skillgen_ros.core.dataset.report import wilson_interval
     from skillgen_ros.core.generation.session import RunRequest, run_generation
@@ -65,13 +80,18 @@ def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int,
     env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, images=images, velocity_scale=velocity_scale))
     with tempfile.TemporaryDirectory() as out:
         req = RunRequest(task=task, variant=variant, method=method, attempts=attempts, seed=seed, augment=augment,
-                         output_dir=os.path.join(out, "run"), video_attempts=0)
+                         output_dir=os.path.join(out, "run"), video_attempts=0, profile=profile)
         cpu0, t0 = time.process_time(), time.perf_counter()
         run = run_generation(env, demos, task_spec, req, write_report=False)
         cpu, wall = time.process_time() - cpu0, time.perf_counter() - t0
     env.close()
     lo, hi = wilson_interval(run.successes, run.attempts)
-    return {"task": task, "variant": variant, "method": method, "augment": augment, "perception": perception,
+    used = Counter(str(n) for r in run.results for n in r.initiation_candidates_used)
+    return {"task": task, "variant": variant, "method": method, "augment": augment, "profile": profile,
+            "initiation_candidates": req.config().initiation_candidates,
+            "initiation_candidates_used": dict(sorted(used.items(), key=lambda kv: int(kv[0]))),
+            "attempts_with_retry": sum(any(n > 1 for n in r.initiation_candidates_used) for r in run.results),
+            "perception": perception,
             "images": images, "velocity_scale": velocity_scale, "attempts": run.attempts, "successes": run.successes,
             "rate": run.successes / run.attempts, "wilson95": [lo, hi],
             "paper_rate": paper_rate(task, variant, method, augment),
@@ -157,102 +177,111 @@ EXTRAS = {  # name -> (attempts, seed, perception) -> result; re-measured alone 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--attempts", type=int, default=200)
-    ap.add_argument("--quick", action="store_true", help="10 attempts per cell, D0/D2/clutter only")
+    ap.add_argument("--quick", action="store_true", help="10 attempts per cell, no D1 cells")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--perception", default="ground_truth", choices=["ground_truth", "estimate"])
-    ap.add_argument("--tasks", nargs="*", default=list(CELLS_FULL))
+    ap.add_argument("--tasks", nargs="*", default=list(TASKS))
     ap.add_argument("--variants", nargs="*", default=[], help="only these variants (default: all of each task)")
+    ap.add_argument("--profiles", nargs="+", default=list(PROFILES), choices=PROFILES)
+    ap.add_argument("--methods", nargs="+", default=[], choices=[_key(m, aug) for m, aug in METHODS] + ["replay_noise"],
+                    help="only these methods' cells")
+    ap.add_argument("--force", action="store_true", help="rerun cells the JSON already has")
     ap.add_argument("--skip-graph", action="store_true")
+    ap.add_argument("--skip-extras", action="store_true", help="cells only (no throughput / perception / graph parts)")
     ap.add_argument("--velocity-scale", type=float, default=None,
                     help="planned motions' fraction of the Panda's V/A/J limits in the cells (A/B of the timing; "
                          "default and the extras: SimEnvConfig's, as graphs.yaml's planner)")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "datagen.json"))
-    ap.add_argument("--methods", nargs="+", default=[], choices=[_key(m, aug) for m, aug in METHODS] + ["replay_noise"],
-                    help="only (re)run these methods' cells, merge them into the JSON (no extras)")
     ap.add_argument("--only", nargs="+", default=[], choices=sorted(EXTRAS), metavar="PART",
                     help=f"only (re)measure these of {sorted(EXTRAS)} and update the JSON in place")
     a = ap.parse_args(argv)
     n = 10 if a.quick else a.attempts
+    path = Path(a.out)
+    out = _load(path)
+    rerun = " ".join(["python", "bench/datagen/run.py", *(sys.argv[1:] if argv is None else argv)])
     if a.only:
-        out = json.loads(Path(a.out).read_text()) if Path(a.out).exists() else {"benchmark": "datagen"}
         for part in a.only:
             out[part] = EXTRAS[part](n, a.seed, a.perception)
-            out[part]["rerun"] = " ".join(["python", "bench/datagen/run.py", *sys.argv[1:]])
+            out[part]["rerun"] = rerun
             print(part, json.dumps({k: v for k, v in out[part].items() if k != "pairs"}, indent=2))
-        Path(a.out).write_text(json.dumps(out, indent=2))
+        _save(path, out)
         return 0
-    n = 10 if a.quick else a.attempts
+    jobs = _jobs(a, n)
+    done = {cell_key(c) for c in out["cells"] if c.get("attempts") == n and c.get("seed", out.get("seed")) == a.seed}
+    todo = [j for j in jobs if a.force or _job_key(j) not in done]
+    print(f"{len(jobs)} cells, {len(jobs) - len(todo)} already in {path}, running {len(todo)}", flush=True)
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(max_workers=a.workers) as pool:
+        futures = {pool.submit(_star, j): j for j in todo}
+        for fut in as_completed(futures):
+            cell = fut.result()
+            cell.update(seed=a.seed, rerun=rerun, measured=time.strftime("%Y-%m-%d"))
+            out["cells"] = [c for c in out["cells"] if cell_key(c) != cell_key(cell)] + [cell]
+            out["summary"] = summarize(out["cells"])
+            _save(path, out)  # resumable: every finished cell is on disk
+            print(f"{cell['task']} {cell['variant']} {_key(cell['method'], cell['augment'])} [{cell['profile']}]: "
+                  f"{cell['successes']}/{cell['attempts']} ({cell['wall_seconds']:.0f} s)", flush=True)
+    out.update(benchmark="datagen", machine=machine_info(), attempts_per_cell=n, seed=a.seed,
+               perception=a.perception, cells_wall_seconds=time.perf_counter() - t0, rerun=rerun)
+    if not a.skip_extras:
+        for k, f in EXTRAS.items():
+            if not (k == "graph_overhead" and a.skip_graph) and (a.force or k not in out):
+                out[k] = f(n, a.seed, a.perception)
+                _save(path, out)
+    out["summary"] = summarize(out["cells"])
+    _save(path, out)
+    print(json.dumps(out["summary"], indent=2))
+    print(f"wrote {path}")
+    return 0
+
+
+def _jobs(a, n: int) -> list[tuple]:
+    """(task, variant, method, augment, attempts, seed, perception, images, velocity_scale, profile)
+    per cell: profile-free methods once (under `paper`), the others under each profile asked for."""
     jobs = []
     for task in a.tasks:
-        for variant in CELLS_FULL[task]:
+        for variant in task_variants(task):
             if (a.quick and variant == "D1") or (a.variants and variant not in a.variants):
                 continue
             for method, aug in METHODS:
-                jobs.append((task, variant, method, aug, n, a.seed, a.perception, False, a.velocity_scale))
-        jobs.append((task, "D0", "replay_noise", False, n, a.seed, a.perception, False, a.velocity_scale))
+                profiles = [p for p in a.profiles if method not in PROFILE_FREE] or \
+                    (["paper"] if method in PROFILE_FREE else [])
+                for prof in profiles:
+                    jobs.append((task, variant, method, aug, n, a.seed, a.perception, False, a.velocity_scale, prof))
+        if not a.variants or "D0" in a.variants:
+            jobs.append((task, "D0", "replay_noise", False, n, a.seed, a.perception, False, a.velocity_scale, "paper"))
     if a.methods:
         jobs = [j for j in jobs if _key(j[2], j[3]) in a.methods]
-    t0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=a.workers) as pool:
-        cells = list(pool.map(_star, jobs))
-    if a.methods:
-        return _merge(Path(a.out), cells, time.perf_counter() - t0)
-    extra = {k: f(n, a.seed, a.perception) for k, f in EXTRAS.items() if not (k == "graph_overhead" and a.skip_graph)}
-    summary = _summarize(cells)
-    out = {"benchmark": "datagen", "rerun": " ".join(["python", "bench/datagen/run.py", *sys.argv[1:]]),
-           "machine": machine_info(),
-           "attempts_per_cell": n, "seed": a.seed, "perception": a.perception,
-           "wall_seconds": time.perf_counter() - t0, "cells": cells, "summary": summary, **extra}
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(out, indent=2))
-    print(json.dumps(summary, indent=2))
-    print(f"wrote {a.out}")
-    return 0
+    return jobs
+
+
+def _job_key(j: tuple) -> tuple:
+    return j[0], j[1], _key(j[2], j[3]), j[9]
 
 
 def _key(method: str, augment: bool) -> str:
     return method + ("+IA" if augment else "")
 
 
-def _merge(path: Path, cells: list, wall: float) -> int:
-    """Replace the matching cells of an existing JSON (or start one) and recompute the summary."""
-    out = json.loads(path.read_text()) if path.exists() else {"benchmark": "datagen", "cells": []}
-    new = {(c["task"], c["variant"], c["method"], c["augment"]): c for c in cells}
-    for c in cells:
-        c["rerun"] = " ".join(["python", "bench/datagen/run.py", *sys.argv[1:]])
-        c["measured"] = time.strftime("%Y-%m-%d")
-    out["cells"] = [new.pop((c["task"], c["variant"], c["method"], c["augment"]), c) for c in out["cells"]]
-    out["cells"] += list(new.values())
-    from skillgen_ros.core.dataset.paper import paper_rate
+def _load(path: Path) -> dict:
+    """The JSON so far; cells measured before profiles existed (no "profile") are dropped: they ran
+    another MimicGen baseline and cannot be resumed into a profiled table."""
+    out = json.loads(path.read_text()) if path.exists() else {}
+    out.setdefault("benchmark", "datagen")
+    out["cells"] = [c for c in out.get("cells", []) if "profile" in c]
+    return out
 
-    for c in out["cells"]:  # the comparison table may have changed since the others ran
-        c["paper_rate"] = paper_rate(c["task"], c["variant"], c["method"], c["augment"])
-    out["summary"] = _summarize(out["cells"])
-    out.setdefault("partial_reruns", []).append({"command": cells[0]["rerun"] if cells else "", "cells": len(cells),
-                                                 "wall_seconds": wall, "date": time.strftime("%Y-%m-%d")})
-    path.write_text(json.dumps(out, indent=2))
-    print(json.dumps(out["summary"], indent=2))
-    print(f"merged {len(cells)} cells into {path}")
-    return 0
+
+def _save(path: Path, out: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(out, indent=2))
+    os.replace(tmp, path)
 
 
 def _star(args):
-    return run_cell(*args)
-
-
-def _summarize(cells) -> dict:
-    def avg(pred):
-        xs = [c["rate"] for c in cells if pred(c)]
-        return sum(xs) / len(xs) if xs else None
-
-    out = {}
-    for m, aug in METHODS + [("replay_noise", False)]:
-        key = _key(m, aug)
-        out[key] = {"all": avg(lambda c: c["method"] == m and c["augment"] == aug),
-                    "D2": avg(lambda c: c["method"] == m and c["augment"] == aug and c["variant"] == "D2"),
-                    "clutter": avg(lambda c: c["method"] == m and c["augment"] == aug and c["variant"] == "clutter")}
-    return out
+    return run_cell(*args[:9], profile=args[9])
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 
     skillgen generate                       Square D1, skillgen, 50 attempts through the full graph
     skillgen generate --task Square --variant D2 --method mimicgen --attempts 200 --seed 3
+    skillgen generate --profile paper       the paper's Algorithm 1 (see core/generation/profile.py)
     skillgen generate --in-process          same algorithm, no ROS graph (SimGenerationEnv)
 
 Graph mode launches the `datagen` graph (sim_driver in lockstep, perception in estimate mode,
@@ -31,7 +32,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--first-index", type=int, default=0)
     p.add_argument("--augment", action="store_true", help="initiation augmentation (t=0.08 m, r=80 deg)")
-    p.add_argument("--selection", default="random", help="random (paper) or nearest (MimicGen)")
+    p.add_argument("--selection", default="random",
+                   help="skillgen: random (paper) or nearest_neighbor; mimicgen uses its task config's (mimicgen.py)")
     p.add_argument("--source-demos", default="", help="directory of source bags (default bags/<task>)")
     p.add_argument("--output", default="", help="output directory (default out/<task>_<variant>_<method>_seed<seed>)")
     p.add_argument("--no-bag", action="store_true", help="do not record the session to MCAP")
@@ -39,8 +41,12 @@ def _parser() -> argparse.ArgumentParser:
                    help="record only attempts FIRST..FIRST+COUNT-1 of the run (default: all)")
     p.add_argument("--video-attempts", type=int, default=-1, metavar="N",
                    help="attempts filmed into the run's MP4 (default 4; 0 = no video)")
+    p.add_argument("--profile", default="", choices=["", "paper", "skillgen_ros"],
+                   help="algorithm profile: paper (the paper's Algorithm 1) or skillgen_ros (default: "
+                        "initiation candidates, release moves, planner start repairs, collision filter)")
     p.add_argument("--initiation-candidates", type=int, default=0, metavar="N",
-                   help="skillgen: initiation poses tried per skill when one is unreachable (0 = default 6, 1 = paper)")
+                   help="skillgen: initiation poses tried per skill when one is unreachable (0 = the profile's: "
+                        "skillgen_ros 6, paper 1)")
     p.add_argument("--in-process", action="store_true", help="run without the ROS graph")
     p.add_argument("--perception", default="estimate", choices=["estimate", "ground_truth"],
                    help="in-process only; the graph uses params/perception.yaml")
@@ -93,7 +99,8 @@ def run_in_process(a) -> int:
                      target_successes=a.target_successes, seed=a.seed, first_index=a.first_index,
                      augment=a.augment, selection=a.selection, output_dir=_output(a), source_demos=a.source_demos,
                      **({"video_attempts": a.video_attempts} if a.video_attempts >= 0 else {}),
-                     **({"initiation_candidates": a.initiation_candidates} if a.initiation_candidates else {}))
+                     **({"initiation_candidates": a.initiation_candidates} if a.initiation_candidates else {}),
+                     **({"profile": a.profile} if a.profile else {}))
     validate_request(req, TASK_NAMES)
     paths = expand_bag_paths([a.source_demos or os.path.join("bags", a.task)])
     demos = load_source_demos(paths, get_task(a.task)) if paths else []
@@ -141,7 +148,7 @@ def run_graph(a) -> int:
                              selection=a.selection, source_demos=a.source_demos, output_dir=_output(a),
                              record_bag=not a.no_bag, record_first=_window(a.record)[0],
                              record_count=_window(a.record)[1], video_attempts=a.video_attempts,
-                             initiation_candidates=a.initiation_candidates)
+                             initiation_candidates=a.initiation_candidates, profile=a.profile)
         if not ok:
             raise SkillGenError("datagen rejected the goal (busy)", reason="REJECTED")
         bar = tqdm(total=a.attempts, unit="attempt", dynamic_ncols=True)

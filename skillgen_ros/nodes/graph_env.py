@@ -286,6 +286,12 @@ class RosGraphEnv:
     def set_skill_object(self, object_id: str | None) -> None:
         self._skill_object = object_id
 
+    _planner_extras = True
+
+    def set_planner_extras(self, on: bool) -> None:
+        """The attempt's profile (core/generation/profile.py), sent as PlanToPose.extras."""
+        self._planner_extras = bool(on)
+
     def plan_and_execute(self, target: Pose, mode: str, attached: str | None):
         req = PlanToPose.Request()
         req.target = convert.pose_stamped(target, "world", self.node.get_clock().now().to_msg())
@@ -298,6 +304,7 @@ class RosGraphEnv:
         req.start_positions = [float(v) for v in self.current_q()]
         req.objects = self._scene_for_planner()
         req.manipulated_object = self._skill_object or ""
+        req.extras = self._planner_extras
         if self._plan_seed is not None:
             req.seeded, req.seed, req.plan_index = True, self._plan_seed, self._plans
         self._plans += 1

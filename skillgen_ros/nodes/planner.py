@@ -246,7 +246,7 @@ class PlannerNode(Node):
         seed = (int(req.seed), int(req.plan_index)) if req.seeded else None
         result = self.planner.plan(q0, target, mode, attached, manipulated, released,
                                    start_support, goal_support, timeout, released_support=released_support,
-                                   seed=seed)
+                                   seed=seed, extras=bool(getattr(req, "extras", True)))
         return result.status, result.message, result
 
     # -- output ------------------------------------------------------------------------------

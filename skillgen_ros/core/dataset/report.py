@@ -40,6 +40,7 @@ class RunSummary:
     stage_seconds: dict  # stage -> tuple of per-attempt seconds
     wall_seconds: float = 0.0
     paths: dict = field(default_factory=dict)  # "dataset", "failed", "bag", "video" -> path
+    profile: str = ""  # the algorithm profile (core/generation/profile.py), shown in the label
 
     @property
     def rate(self) -> float:
@@ -47,16 +48,17 @@ class RunSummary:
 
     @property
     def label(self) -> str:
-        return f"{self.method}{'+IA' if self.augment else ''} {self.task} {self.variant}"
+        return (f"{self.method}{'+IA' if self.augment else ''} {self.task} {self.variant}"
+                + (f" [{self.profile}]" if self.profile else ""))
 
     @staticmethod
     def from_results(task: str, variant: str, method: str, results: Sequence[AttemptResult], augment: bool = False,
-                     wall_seconds: float = 0.0, paths: dict | None = None) -> "RunSummary":
+                     wall_seconds: float = 0.0, paths: dict | None = None, profile: str = "") -> "RunSummary":
         fails = Counter(r.reason.value for r in results if r.reason is not FailureReason.OK)
         return RunSummary(task, variant, method, augment, len(results), sum(r.success for r in results),
                           dict(sorted(fails.items())), tuple(r.timings.get("total", 0.0) for r in results),
                           {s: tuple(r.timings.get(s, 0.0) for r in results) for s in STAGES},
-                          wall_seconds, dict(paths or {}))
+                          wall_seconds, dict(paths or {}), profile)
 
 
 def _plots(out_dir: str, runs: Sequence[RunSummary]) -> dict[str, str]:

@@ -5,6 +5,7 @@ import os
 from collections import Counter
 
 from ..generation.attempt import AttemptResult, GenerationConfig
+from ..generation.mimicgen import spec_record
 from .hdf5 import DatasetError, DatasetWriter
 
 DATASET_FILE = "demo.hdf5"
@@ -24,14 +25,19 @@ def make_env_args(task: str, variant: str, method: str, seed: int, config: Gener
                        "augment_translation": config.augmentation.translation,
                        "augment_rotation_deg": config.augmentation.rotation_deg,
                        "interpolation_steps": config.interpolation_steps, "fixed_steps": config.fixed_steps,
-                       "initiation_candidates": config.initiation_candidates},
+                       "initiation_candidates": config.initiation_candidates,
+                       "profile": config.profile, "release_moves": config.release.unjam_max > 0
+                       or config.release.follow > 0 or config.release.clear_max > 0,
+                       "planner_extras": config.planner_extras, "check_collisions": config.check_collisions,
+                       **({"mimicgen": spec_record(task)} if method == "mimicgen" else {})},
     }
 
 
 def attempt_attrs(r: AttemptResult) -> dict:
     return {"method": r.method, "index": r.index, "scene_seed": r.scene_seed, "source_demos": list(r.source_demos),
             "success": r.success, "reason": r.reason.value, "message": r.message,
-            "timings": {k: round(v, 6) for k, v in r.timings.items()}}
+            "timings": {k: round(v, 6) for k, v in r.timings.items()},
+            "initiation_candidates_used": list(r.initiation_candidates_used)}
 
 
 class AttemptSink:

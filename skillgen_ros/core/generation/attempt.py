@@ -3,8 +3,8 @@
 skillgen:  per skill i - estimate T_W^{O_i'}, pick a source demo, T_W^{E_0'} = T_W^{O_i'} T_O^{E_0},
            (optionally perturb it), plan + execute a transit/transfer motion there, (replay the
            recovery segment), then replay T_W^{A_t'} = T_W^{O_i'} T_O^{A_t} as noisy delta actions.
-mimicgen:  the same skill replay, but segments are stitched by MimicGen's linear interpolation
-           (interpolation_steps + fixed_steps) from the current EE pose; no planner, no collisions.
+mimicgen:  NVlabs/mimicgen's generator (mimicgen.py): object-centric subtasks with randomized ends,
+           whole-segment transform, linear interpolation between them; no planner, no collisions.
 replay_noise: the whole source demo replayed with action noise from its own initial scene.
 Then the task success check decides whether the attempt is kept. The env does the acting; this
 module does the bookkeeping and the math, and records every step for the dataset.
@@ -20,14 +20,16 @@ import numpy as np
 from ..errors import InvalidInputError, SkillGenError
 from ..geometry import Pose
 from ..skills.actions import ActionScale, make_action, pose_to_delta_action
-from ..skills.augmentation import AugmentationConfig, interpolate_poses, perturb_initiation
+from ..skills.augmentation import AugmentationConfig, perturb_initiation
 from ..skills.replay import plan_replay
 from ..skills.protocols import SkillLike, TaskLike
 from ..skills.segment import SourceDemo
 from ..skills.transform import matrix_to_array
 from .episode import Episode, EpisodeRecorder, Observation, StepLabel
 from .initiation import initiation_candidates
+from .mimicgen import check_subtasks, run_mimicgen
 from .outcome import GOAL_INFEASIBLE, FailureReason, motion_failure  # noqa: F401 (re-exported)
+from .profile import DEFAULT_PROFILE
 from .release import Feedback, ReleaseConfig, release_targets
 from .seeds import attempt_rng, scene_seed
 from .selection import make_strategy
@@ -64,7 +66,7 @@ class GenerationConfig:
     augment: bool = False
     augmentation: AugmentationConfig = AugmentationConfig()
     scale: ActionScale = ActionScale()
-    interpolation_steps: int = 5  # MimicGen's num_interpolation_steps
+    interpolation_steps: int = 5  # MimicGen's num_interpolation_steps (mimicgen.py)
     fixed_steps: int = 0  # MimicGen's num_fixed_steps
     max_steps: int = 3000  # total control steps before TIMEOUT
     time_limit_s: float | None = None  # wall time before TIMEOUT
@@ -76,6 +78,8 @@ class GenerationConfig:
     # hold while the fingers open (settle), unjam fingers stopped short of open, follow a push by
     # an open finger, clear a finger still touching. ReleaseConfig().without_moves() = only the settle.
     release: ReleaseConfig = ReleaseConfig()
+    profile: str = DEFAULT_PROFILE  # recorded; RunRequest.config() applies it (profile.py)
+    planner_extras: bool = True  # the planner's start repairs (MotionPlanner.plan extras)
 
     def __post_init__(self):
         if (self.action_noise < 0 or self.interpolation_steps < 0 or self.fixed_steps < 0 or self.max_steps < 1
@@ -94,6 +98,7 @@ class AttemptResult:
     source_demos: tuple[int, ...]  # per skill (replay_noise: the one demo)
     episode: Episode
     timings: dict  # stage -> seconds: reset, perception, motion, skill, success, total
+    initiation_candidates_used: tuple[int, ...] = ()  # skillgen: initiation poses tried, per skill reached
 
 
 class _Fail(Exception):
@@ -115,6 +120,9 @@ class _Attempt:
         self.rng_noise = attempt_rng(seed, index, "noise")
         self.rng_aug = attempt_rng(seed, index, "augmentation")
         self.rng_fallback = attempt_rng(seed, index, "initiation")
+        self.rng_subtasks = attempt_rng(seed, index, "subtasks")
+        self.candidates_used: list[int] = []
+        self.success_seen = False  # MimicGen: task success at any step (mimicgen.py)
         self.strategy = make_strategy(config.selection, **config.selection_params)
         self.rec = EpisodeRecorder()
         self.timings = {k: 0.0 for k in ("reset", "perception", "motion", "skill", "success")}
@@ -150,6 +158,9 @@ class _Attempt:
     def reset(self, variant: str, seed: int) -> None:
         t = time.perf_counter()
         self.env.reset(self.task.name, variant, seed)
+        extras = getattr(self.env, "set_planner_extras", None)
+        if extras is not None:
+            extras(self.cfg.planner_extras)
         self.obs = self.env.observe()
         self._timed("reset", t)
 
@@ -244,11 +255,7 @@ class _Attempt:
         for skill in sorted(self.task.skills, key=lambda s: s.index):
             T_W_O = self.estimate(skill)  # T_W^{O_i'}
             j = self.select(skill, T_W_O)
-            seg = self.demos[j].skill(skill.index)
-            if self.method == "skillgen":
-                self.skillgen_skill(skill, seg, j, T_W_O)
-            else:
-                self.mimicgen_skill(skill, seg, j, T_W_O)
+            self.skillgen_skill(skill, self.demos[j].skill(skill.index), j, T_W_O)
             self.check_skill(skill)
 
     def skillgen_skill(self, skill: SkillLike, seg, j: int, T_W_O: np.ndarray) -> None:
@@ -257,7 +264,9 @@ class _Attempt:
         candidates = list(initiation_candidates(self.demos, self.task, skill, j, T_W_O, self.rng_fallback,
                                                 self.cfg.initiation_candidates))
         self.settle_gripper(StepLabel(True, skill.index, j, matrix_to_array(seg.initiation_in_world(T_W_O))))
+        self.candidates_used.append(0)
         for k, (j, T_W_O) in enumerate(candidates):
+            self.candidates_used[-1] = k + 1
             seg = self.demos[j].skill(skill.index)
             init = seg.initiation_in_world(T_W_O)
             goal = perturb_initiation(init, self.cfg.augmentation, self.rng_aug) if self.cfg.augment else init
@@ -310,25 +319,6 @@ class _Attempt:
                         f"skill {skill.index} replay failed: {reason}: {message}")
         self._budget()
 
-    def mimicgen_skill(self, skill: SkillLike, seg, j: int, T_W_O: np.ndarray) -> None:
-        """MimicGen's merge: one step holding the start pose, interpolation_steps poses plus the first
-        transformed target, fixed_steps holding it, then the rest of the segment. As in MimicGen's
-        default (interpolate_from_last_target_pose), later skills start from the last target."""
-        cmds = plan_replay(seg, T_W_O)
-        first = cmds.targets[0]
-        goal7 = matrix_to_array(first)
-        start = self.last_target if self.last_target is not None else self.obs.ee_matrix()
-        path = np.concatenate([start[None], interpolate_poses(start, first, self.cfg.interpolation_steps + 1),
-                               np.repeat(first[None], self.cfg.fixed_steps, axis=0)])
-        grip = np.concatenate([[self.gripper], np.full(len(path) - 1, cmds.gripper[0])])
-        t = time.perf_counter()
-        try:
-            for T, g in zip(path, grip):  # no noise during interpolation (MimicGen's default)
-                self._step(T, float(g), 0.0, StepLabel(True, skill.index, j, goal7))
-        finally:
-            self._timed("motion", t)
-        self.replay(cmds.targets[1:], cmds.gripper[1:], StepLabel(False, skill.index, j, goal7), self.cfg.action_noise)
-
     def run_replay_noise(self) -> None:
         j = int(self.rng_select.integers(len(self.demos)))
         demo = self.demos[j]
@@ -375,15 +365,19 @@ def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: Ta
         for d in source_demos:
             for sk in task.skills:
                 d.skill(sk.index)  # raises ANNOTATION_MISSING_SKILL naming the demo
+        if method == "mimicgen":
+            check_subtasks(source_demos, task)
     a = _Attempt(env, source_demos, task, method, index, seed, config)
     reason, message = FailureReason.OK, "task succeeded"
     try:
         if method == "replay_noise":
             a.run_replay_noise()
+        elif method == "mimicgen":
+            run_mimicgen(a)
         else:
             a.run_skill_based()
         t = time.perf_counter()
-        ok = bool(env.task_success())
+        ok = a.success_seen or bool(env.task_success())
         a._timed("success", t)
         if not ok:
             reason, message = FailureReason.TASK_FAILED, "all skills ran but the task success check failed"
@@ -393,4 +387,5 @@ def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: Ta
     success = reason is FailureReason.OK
     return AttemptResult(index=index, method=method, success=success, reason=reason, message=message,
                          scene_seed=a.scene_seed,
-                         source_demos=tuple(a.chosen), episode=a.rec.episode(success), timings=a.timings)
+                         source_demos=tuple(a.chosen), episode=a.rec.episode(success), timings=a.timings,
+                         initiation_candidates_used=tuple(a.candidates_used))

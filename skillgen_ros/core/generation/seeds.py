@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 
-STREAMS = {"scene": 0, "selection": 1, "noise": 2, "augmentation": 3, "initiation": 4}
+STREAMS = {"scene": 0, "selection": 1, "noise": 2, "augmentation": 3, "initiation": 4, "subtasks": 5}
 
 
 def _check(run_seed: int, index: int) -> None:

@@ -19,6 +19,7 @@ from ..errors import InvalidInputError, UnknownTaskError
 from ..skills.augmentation import AugmentationConfig
 from ..skills.segment import SourceDemo
 from .attempt import METHODS, AttemptResult, GenerationConfig, GenerationEnv, run_attempt
+from .profile import DEFAULT_PROFILE, get_profile
 from .release import ReleaseConfig
 from .selection import make_strategy
 
@@ -43,15 +44,25 @@ class RunRequest:
     source_demos: str = ""  # directory of source bags; "" = bags/<task>
     max_steps: int = 3000
     video_attempts: int = 4  # attempts captured into the MP4 (successes and failures)
-    initiation_candidates: int = 6  # skillgen: initiation poses tried per skill (1 = the paper)
+    # skillgen: initiation poses tried per skill; 0 = the profile's (paper 1, skillgen_ros 6)
+    initiation_candidates: int = 0
     release: ReleaseConfig = ReleaseConfig()  # how the hand lets go before a planned motion (release.py)
+    profile: str = DEFAULT_PROFILE  # "paper" or "skillgen_ros" (profile.py)
 
     def config(self) -> GenerationConfig:
+        """The attempt settings, with the profile applied; `paper` refuses a candidate count other than 1."""
+        prof = get_profile(self.profile)
+        n = self.initiation_candidates or prof.initiation_candidates
+        if prof.name == "paper" and n != 1:
+            raise InvalidInputError(f"the paper profile tries one initiation pose per skill; initiation_candidates={n} "
+                                    "needs --profile skillgen_ros", reason="INVALID_PARAMETER")
         return GenerationConfig(variant=self.variant, action_noise=self.action_noise, selection=self.selection,
                                 augment=self.augment,
                                 augmentation=AugmentationConfig(self.augment_translation, self.augment_rotation_deg),
-                                max_steps=self.max_steps, initiation_candidates=self.initiation_candidates,
-                                release=self.release)
+                                max_steps=self.max_steps, initiation_candidates=n,
+                                release=self.release if prof.release_moves else self.release.without_moves(),
+                                check_collisions=prof.check_collisions, profile=prof.name,
+                                planner_extras=prof.planner_extras)
 
 
 def validate_request(req: RunRequest, known_tasks: Sequence[str]) -> None:
@@ -174,6 +185,6 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
         paths["video"] = out.video_path
     if write_report and out.results:
         summary = RunSummary.from_results(req.task, req.variant, req.method, out.results, req.augment,
-                                          out.wall_seconds, paths)
+                                          out.wall_seconds, paths, profile=cfg.profile)
         out.report_path = _write_report(req.output_dir, [summary])
     return out

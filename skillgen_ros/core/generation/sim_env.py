@@ -214,7 +214,7 @@ class SimGenerationEnv:
                                 manipulated=skill_object if mode == "transit" else None, released=released,
                                 released_support=released_support,
                                 start_support="table", goal_support=skill_object,
-                                timeout=self.cfg.plan_timeout)
+                                timeout=self.cfg.plan_timeout, extras=self._planner_extras)
         self._last_attached = attached if mode == "transfer" else None
         self._last_support = skill_object if mode == "transfer" else None
         self.last_plan = res
@@ -293,6 +293,11 @@ class SimGenerationEnv:
 
     # The attempt tells the env which object the next skill manipulates (for allowed contacts).
     _next_object: str | None = None
+    _planner_extras = True
+
+    def set_planner_extras(self, on: bool) -> None:
+        """The attempt's profile (profile.py): the planner's start repairs on or off."""
+        self._planner_extras = bool(on)
 
     def set_skill_object(self, object_id: str | None) -> None:
         self._next_object = object_id

@@ -146,7 +146,8 @@ class MotionPlanner:
              attached: AttachedObject | None = None, manipulated: str | None = None,
              released: str | None = None, start_support: str | None = "table", goal_support: str | None = "table",
              timeout: float = 5.0, retreat: bool = True, approach: bool = True,
-             released_support: str | None = None, seed: tuple[int, int] | None = None) -> PlanResult:
+             released_support: str | None = None, seed: tuple[int, int] | None = None,
+             extras: bool = True) -> PlanResult:
         """Plan from `start_q` to the EE pose `target`. See the module docstring.
 
         seed=(s, k): draw as the k-th plan after reseed(s) would, whatever this planner ran before
@@ -156,6 +157,11 @@ class MotionPlanner:
         released_support: what `released` was put on (a peg, a bin); the hand may touch it on the retreat.
         start_support/goal_support: what the held object may touch when lifted from / put down on
         (a box name or "table"), transfer only.
+        extras: this project's start repairs beyond the paper's retreat -> transit -> approach (a hand
+        on a fixture backs out along a retreat doubled to 10 cm; a grazing arm escapes along its null
+        space; a retreat IK cannot follow is shortened or preceded by a self-motion). False (the
+        `paper` profile, core/generation/profile.py): a start that collides is START_IN_COLLISION,
+        and a blocked retreat from a start in contact too.
         """
         t_all = time.perf_counter()
         timings: dict[str, float] = {}
@@ -196,6 +202,8 @@ class MotionPlanner:
         q0 = np.clip(q0, self.kin.lower, self.kin.upper)
         escape, touching, notes = q0[None], (), []
         if collides(q0[None], allow_start)[0]:
+            if not extras:
+                return fail(PlanStatus.START_IN_COLLISION, "start configuration collides (planner extras off)")
             touching = self._touching_hand(q0, allow_start, collides)
             if touching:  # the replayed skill left the hand against a fixture: back out along the retreat
                 allow_start = replace(allow_start, hand_object=allow_start.hand_names() + touching)
@@ -246,6 +254,8 @@ class MotionPlanner:
                 if not collides(q0[None])[0]:
                     retreat_path = q0[None]
                     notes.append(f"{why}; retreat skipped (start is clear)")
+                elif not extras:
+                    return fail(PlanStatus.START_IN_COLLISION, f"{why} (planner extras off)")
                 else:
                     retreat_path = self._partial_retreat(q0, edge_free, allow_start, collides)
                     if retreat_path is not None:

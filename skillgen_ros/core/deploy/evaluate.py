@@ -13,7 +13,7 @@ from typing import Callable, Sequence
 
 from ..dataset.report import wilson_interval
 from ..tasks import get_task
-from .loading import DEFAULT_DEMOS_DIR, load_policy
+from .loading import DEFAULT_DEMOS_DIR
 from .rollout import DeployConfig, RolloutResult, run_rollout
 from .seeds import rollout_seed
 
@@ -35,6 +35,9 @@ class EvalSummary:
     @property
     def success_rate(self) -> float:
         return self.successes / self.rollouts if self.rollouts else 0.0
+
+    def __float__(self) -> float:  # the trainer's hook reads evaluate(...) as its success rate
+        return self.success_rate
 
     def line(self) -> str:
         return (f"{self.task} {self.variant} [{self.mode}]: {self.successes}/{self.rollouts} = "
@@ -65,18 +68,36 @@ def make_env(perception: str = "ground_truth", images: bool = False, seed: int =
     return SimGenerationEnv(SimEnvConfig(perception=perception, images=images, video=False, seed=seed))
 
 
-def evaluate(checkpoint_path: str, task: str, variant: str, mode: str = "class", rollouts: int = 50, seed: int = 0,
+def default_mode(config) -> str:
+    """The initiation mode a checkpoint was trained for: class, reg, bc (MimicGen baseline), else tamp."""
+    if getattr(config, "method", "") == "mimicgen" or getattr(config, "all_steps", False):
+        return "bc"
+    if config.has_class and config.has_termination:
+        return "class"
+    return "reg" if config.has_reg and config.has_termination else "tamp"
+
+
+def evaluate(checkpoint_path: str, task: str | None = None, variant: str | None = None, mode: str | None = None,
+             rollouts: int = 50, seed: int = 0,
              device: str = "cpu", demos_dir: str = DEFAULT_DEMOS_DIR, config: DeployConfig | None = None,
              perception: str = "ground_truth", env=None, policy=None,
-             on_rollout: Callable[[int, RolloutResult], None] | None = None, first_index: int = 0) -> EvalSummary:
+             on_rollout: Callable[[int, RolloutResult], None] | None = None, first_index: int = 0,
+             torch_threads: int = 1) -> EvalSummary:
     """`rollouts` in-process rollouts of a checkpoint (or an already loaded `policy`) with
-    initiation `mode` on the held-out reset seeds rollout_seed(seed, i), i = first_index, ..."""
-    loaded, demos = load_policy(checkpoint_path, task, mode, device, demos_dir) if policy is None else (policy, None)
-    if demos is None:
-        from .loading import check_policy, load_demos
+    initiation `mode` on the held-out reset seeds rollout_seed(seed, i), i = first_index, ...
+    task, variant and mode default to the checkpoint's own (evaluate(path) is the trainer's hook)."""
+    from .loading import check_policy, load_demos
 
-        demos = load_demos(task, demos_dir) if mode in ("class", "tamp") else []
-        check_policy(loaded, task, mode, demos)
+    if policy is None:
+        from ..learning.checkpoint import load_hsp
+
+        policy = load_hsp(checkpoint_path, device=device, expect_task=task)
+    task = task or policy.config.task
+    variant = variant or policy.config.variant
+    mode = mode or default_mode(policy.config)
+    loaded = policy
+    demos = load_demos(task, demos_dir) if mode in ("class", "tamp") else []
+    check_policy(loaded, task, mode, demos)
     cfg = config or DeployConfig(mode=mode)
     if cfg.mode != mode:
         cfg = DeployConfig(**{**cfg.__dict__, "mode": mode})
@@ -85,13 +106,18 @@ def evaluate(checkpoint_path: str, task: str, variant: str, mode: str = "class",
     env = env or make_env(perception, images=images, seed=seed)
     spec = get_task(task)
     results = []
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(torch_threads)  # one core per step (on 2 loaded cores, 2 threads made a step 20x slower)
     try:
         for i in range(first_index, first_index + rollouts):
-            r = run_rollout(env, loaded, spec, rollout_seed(seed, i), variant, cfg, demos, index=i)
+            r = run_rollout(env, loaded, spec, rollout_seed(seed, i), variant, cfg, demos)
             results.append(r)
             if on_rollout is not None:
                 on_rollout(i, r)
     finally:
+        torch.set_num_threads(threads)
         if own:
             env.close()
     return summarize(task, variant, mode, results)

@@ -109,12 +109,12 @@ def true_object_poses(env) -> dict[str, Pose]:
 
 
 class _Rollout:
-    def __init__(self, env, policy, task, demos, config: DeployConfig, seed: int, index: int,
-                 obs_fn, on_progress: Progress | None):
+    def __init__(self, env, policy, task, demos, config: DeployConfig, seed: int, obs_fn,
+                 on_progress: Progress | None):
         self.env, self.policy, self.task, self.demos, self.cfg = env, policy, task, demos, config
         self.obs_fn = obs_fn
         self.progress = on_progress or (lambda *_: None)
-        self.rng = rollout_rng(seed, index, 0)
+        self.rng = rollout_rng(seed, 0, 0)  # from the reset seed alone: the same in the graph and in-process
         self.steps = 0
         self.ee: list[np.ndarray] = []
         self.logs: list[SkillLog] = []
@@ -242,14 +242,13 @@ class _Rollout:
         try:
             n, ended = self.run_policy(skill)
         except _Fail:
-            self.logs.append(SkillLog(skill.index, j, tuple(pose7(choice.poses[k])), moved, -1, "failed"))
+            self.logs.append(SkillLog(skill.index, j, tuple(float(v) for v in pose7(choice.poses[k])), moved, -1, "failed"))
             raise
-        self.logs.append(SkillLog(skill.index, j, tuple(pose7(choice.poses[k])), moved, n, ended))
+        self.logs.append(SkillLog(skill.index, j, tuple(float(v) for v in pose7(choice.poses[k])), moved, n, ended))
 
 
 def run_rollout(env, policy, task, reset_seed: int, variant: str | None, config: DeployConfig = DeployConfig(),
-                demos: Sequence[SourceDemo] = (), obs_fn=None, on_progress: Progress | None = None,
-                index: int = 0) -> RolloutResult:
+                demos: Sequence[SourceDemo] = (), obs_fn=None, on_progress: Progress | None = None) -> RolloutResult:
     """One rollout; never raises for in-rollout failures (they come back as RolloutResult.reason).
 
     variant None: deploy on the scene the env already holds (no reset). class and tamp need the
@@ -261,7 +260,7 @@ def run_rollout(env, policy, task, reset_seed: int, variant: str | None, config:
                                 reason="NO_SOURCE_DEMOS")
     if obs_fn is None:
         from ..learning.observation import policy_obs as obs_fn
-    r = _Rollout(env, policy, task, demos, config, reset_seed, index, obs_fn, on_progress)
+    r = _Rollout(env, policy, task, demos, config, reset_seed, obs_fn, on_progress)
     t0 = time.perf_counter()
     reason, message = DeployReason.OK, "task succeeded"
     try:

@@ -25,6 +25,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--output", required=True, help="directory for checkpoints and curves")
     p.add_argument("--resume", action="store_true", help="continue from OUTPUT/last.pt")
     p.add_argument("--device", default=t.device, help="cpu (default) or cuda[:N]")
+    p.add_argument("--threads", type=int, default=t.threads, help="torch CPU threads (0: torch default)")
     p.add_argument("--epochs", type=int, default=t.epochs)
     p.add_argument("--steps-per-epoch", type=int, default=t.steps_per_epoch)
     p.add_argument("--batch-size", type=int, default=t.batch_size)
@@ -52,7 +53,8 @@ def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     net = NetworkConfig(rnn_hidden=a.hidden, rnn_layers=a.rnn_layers, mlp_hidden=tuple(a.mlp_hidden))
     tc = TrainConfig(lr=a.lr, batch_size=a.batch_size, epochs=a.epochs, steps_per_epoch=a.steps_per_epoch,
-                     valid_ratio=a.valid_ratio, seed=a.seed, eval_every=a.eval_every, device=a.device)
+                     valid_ratio=a.valid_ratio, seed=a.seed, eval_every=a.eval_every, device=a.device,
+                     threads=a.threads)
     req = TrainRequest(dataset=a.dataset, output_dir=a.output, network=net, train=tc, images=a.images,
                        all_steps=a.all_steps, reg=a.reg, resume=a.resume, stop_after=a.stop_after,
                        progress=not a.no_progress)

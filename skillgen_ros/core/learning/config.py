@@ -53,8 +53,11 @@ class TrainConfig:
     eval_every: int = 50  # epochs between evaluation rollouts (0: never)
     initiation_window: int = 5  # first steps of each motion segment used as "end of the previous skill"
     device: str = "cpu"
+    threads: int = 0  # torch CPU threads (0: torch's default); 1 is fastest on a shared, loaded machine
 
     def __post_init__(self):
+        if self.threads < 0:
+            raise ParameterError(f"threads must be >= 0, got {self.threads}")
         if not (self.lr > 0 and self.batch_size >= 1 and self.epochs >= 1 and self.steps_per_epoch >= 1):
             raise ParameterError("lr must be > 0 and batch_size, epochs, steps_per_epoch >= 1")
         if not 0 <= self.valid_ratio < 1 or self.eval_every < 0 or self.initiation_window < 1 or self.seed < 0:

@@ -96,8 +96,11 @@ def _setup(req: TrainRequest):
         out.mkdir(parents=True, exist_ok=True)
         cfg, opt_sds = _new_config(req), {}
         check_layout(cfg, expect_task=cfg.task)
+        torch.manual_seed(cfg.train.seed)  # the same initial weights for the same seed
         nets = build_networks(cfg)
     device = resolve_device(cfg.train.device)
+    if cfg.train.threads:
+        torch.set_num_threads(cfg.train.threads)
     for n in nets.values():
         n.to(device)
     opts = {k: torch.optim.Adam(n.parameters(), lr=cfg.train.lr) for k, n in nets.items()}
@@ -265,7 +268,8 @@ def train(req: TrainRequest, evaluate: Callable[[str], float] | None = None) -> 
                           **{f"seconds_{k}": v for k, v in seconds.items()}}
                 cfg = dataclasses.replace(cfg, epoch=cfg.step // spe)
                 cfg = _end_epoch(cfg, nets, opts, out, record, evaluate, valid, device)
-                plot_losses(cfg.history, out / "loss_curves.png")
+                if cfg.epoch % max(1, cfg.train.epochs // 20) == 0 or cfg.step >= total:
+                    plot_losses(cfg.history, out / "loss_curves.png")
                 sums, seconds = {}, {}
     except KeyboardInterrupt:
         save_checkpoint(out / LAST, cfg, nets, opts)

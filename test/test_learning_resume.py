@@ -1,0 +1,100 @@
+"""`skillgen train` resumes after an interruption exactly where it stopped; rollout hook; CLI errors."""
+import json
+
+import pytest
+import torch
+
+from _learning_data import TINY, generated_dataset
+from skillgen_ros.cli.main import main as skillgen
+from skillgen_ros.core.errors import SkillGenError
+from skillgen_ros.core.learning.checkpoint import read_checkpoint
+from skillgen_ros.core.learning.config import NetworkConfig, TrainConfig
+from skillgen_ros.core.learning.trainer import TrainRequest, train
+
+NET = NetworkConfig(rnn_hidden=32, mlp_hidden=(32, 32))
+CFG = TrainConfig(epochs=3, steps_per_epoch=5, batch_size=16, eval_every=0, threads=1)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    return generated_dataset(tmp_path_factory)
+
+
+def _same_weights(a, b):
+    _, sa, oa = read_checkpoint(a)
+    _, sb, ob = read_checkpoint(b)
+    for net in sa:
+        for k in sa[net]:
+            assert torch.equal(sa[net][k], sb[net][k]), (net, k)
+    assert oa["policy"]["state"][0]["step"] == ob["policy"]["state"][0]["step"]
+
+
+def test_stop_and_resume_equals_one_run(dataset, tmp_path):
+    whole = train(TrainRequest(str(dataset), str(tmp_path / "whole"), NET, CFG, reg=True, progress=False))
+    assert whole.finished and whole.steps_run == 15
+    part = train(TrainRequest(str(dataset), str(tmp_path / "part"), NET, CFG, reg=True, stop_after=7, progress=False))
+    assert not part.finished and part.steps_run == 7 and read_checkpoint(part.last_path)[0].step == 7
+    with pytest.raises(SkillGenError) as e:  # a second fresh run would overwrite it
+        train(TrainRequest(str(dataset), str(tmp_path / "part"), NET, CFG, progress=False))
+    assert e.value.reason == "OUTPUT_EXISTS"
+    rest = train(TrainRequest(str(dataset), str(tmp_path / "part"), NET, CFG, resume=True, progress=False))
+    assert rest.finished and rest.steps_run == 8 and rest.config.step == 15 and rest.config.epoch == 3
+    assert [h["epoch"] for h in rest.config.history] == [1, 2, 3]
+    _same_weights(whole.last_path, rest.last_path)
+
+
+def test_ctrl_c_saves_the_last_checkpoint_and_resume_finishes(dataset, tmp_path):
+    calls = []
+
+    def evaluate(path):  # the rollout hook; the second call plays the user's Ctrl-C
+        calls.append(read_checkpoint(path)[0].step)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return 0.5
+
+    cfg = TrainConfig(epochs=3, steps_per_epoch=5, batch_size=16, eval_every=1, threads=1)
+    with pytest.raises(KeyboardInterrupt):
+        train(TrainRequest(str(dataset), str(tmp_path / "run"), NET, cfg, progress=False), evaluate=evaluate)
+    assert calls == [5, 10]
+    saved = read_checkpoint(tmp_path / "run" / "last.pt")[0]
+    assert saved.step == 10 and saved.best["metric"] == "success_rate"
+    rates = iter([0.9])
+    r = train(TrainRequest(str(dataset), str(tmp_path / "run"), NET, cfg, resume=True, progress=False),
+              evaluate=lambda p: next(rates))
+    assert r.finished and r.config.step == 15
+    best = read_checkpoint(r.best_path)[0]
+    assert best.best == {"metric": "success_rate", "value": 0.9, "epoch": 3, "step": 15}
+
+
+def test_best_checkpoint_is_the_best_rollout_epoch(dataset, tmp_path):
+    rates = iter([0.2, 0.6, 0.4])
+    r = train(TrainRequest(str(dataset), str(tmp_path / "run"), NET,
+                           TrainConfig(epochs=3, steps_per_epoch=2, batch_size=8, eval_every=1, threads=1),
+                           progress=False), evaluate=lambda p: next(rates))
+    best = read_checkpoint(r.best_path)[0]
+    assert (best.best["epoch"], best.best["value"], best.step) == (2, 0.6, 4)
+    assert [h["success_rate"] for h in r.config.history] == [0.2, 0.6, 0.4]
+    assert r.config.best["epoch"] == 2  # last.pt remembers which epoch was best
+
+
+def test_cli_trains_stops_resumes_and_refuses_bad_input(dataset, tmp_path, capsys):
+    out = str(tmp_path / "cli")
+    args = ["train", "--dataset", str(dataset), "--output", out, "--threads", "1", *TINY]
+    assert skillgen([*args, "--epochs", "2", "--stop-after", "3"]) == 0
+    first = json.loads(capsys.readouterr().out)
+    assert (first["step"], first["finished"]) == (3, False)
+    assert skillgen([*args, "--epochs", "2", "--resume"]) == 0
+    done = json.loads(capsys.readouterr().out)
+    assert (done["step"], done["epoch"], done["finished"]) == (10, 2, True)
+    assert skillgen([*args, "--epochs", "2"]) == 2
+    assert "OUTPUT_EXISTS" in capsys.readouterr().err
+    assert skillgen(["train", "--dataset", str(tmp_path / "none.hdf5"), "--output", str(tmp_path / "x"), *TINY]) == 2
+    assert "BAD_DATASET" in capsys.readouterr().err
+    assert skillgen(["train", "--dataset", str(dataset), "--output", str(tmp_path / "y"), "--hidden", "0"]) == 2
+    assert "INVALID_PARAMETER" in capsys.readouterr().err
+    assert skillgen(["train", "--dataset", str(dataset), "--output", str(tmp_path / "z"), "--images", *TINY]) == 2
+    assert "MISSING_IMAGES" in capsys.readouterr().err
+    if not torch.cuda.is_available():
+        assert skillgen(["train", "--dataset", str(dataset), "--output", str(tmp_path / "c"), "--device", "cuda",
+                         *TINY]) == 2
+        assert "DEVICE_UNAVAILABLE" in capsys.readouterr().err

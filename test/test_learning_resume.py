@@ -98,3 +98,25 @@ def test_cli_trains_stops_resumes_and_refuses_bad_input(dataset, tmp_path, capsy
         assert skillgen(["train", "--dataset", str(dataset), "--output", str(tmp_path / "c"), "--device", "cuda",
                          *TINY]) == 2
         assert "DEVICE_UNAVAILABLE" in capsys.readouterr().err
+
+
+def test_the_deployment_evaluate_hook_ranks_checkpoints(dataset, tmp_path):
+    """Without an injected hook the trainer calls skillgen_ros.core.deploy.evaluate (real in-process
+    rollouts in the sim; success is not expected from a 2-step policy)."""
+    pytest.importorskip("skillgen_ros.core.deploy")
+    cfg = TrainConfig(epochs=1, steps_per_epoch=2, batch_size=8, eval_every=1, eval_rollouts=1, threads=1)
+    r = train(TrainRequest(str(dataset), str(tmp_path / "run"), NET, cfg, progress=False))
+    rec = r.config.history[-1]
+    assert rec["success_rate"] in (0.0, 1.0) and len(rec["success_wilson95"]) == 2
+    assert read_checkpoint(r.best_path)[0].best["metric"] == "success_rate"
+
+
+def test_class_head_covers_every_source_demo(tmp_path):
+    from conftest import REPO
+    from skillgen_ros.core.learning.trainer import count_source_demos
+
+    assert count_source_demos(str(REPO / "bags"), "Square", 4) == 10  # bags/Square holds demo_00..demo_09
+    assert count_source_demos(str(tmp_path), "Square", 4) == 4  # no folder: the labels seen
+    with pytest.raises(SkillGenError) as e:
+        count_source_demos(str(REPO / "bags"), "Square", 11)
+    assert e.value.reason == "SOURCE_DEMOS_MISMATCH"

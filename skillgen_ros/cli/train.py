@@ -23,6 +23,7 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="skillgen train", description=__doc__.split("\n\n")[0])
     p.add_argument("--dataset", required=True, help="generated demo.hdf5")
     p.add_argument("--output", required=True, help="directory for checkpoints and curves")
+    p.add_argument("--demos-dir", default="bags", help="<dir>/<task>/ holds the source demos (HSP-Class's classes)")
     p.add_argument("--resume", action="store_true", help="continue from OUTPUT/last.pt")
     p.add_argument("--device", default=t.device, help="cpu (default) or cuda[:N]")
     p.add_argument("--threads", type=int, default=t.threads, help="torch CPU threads (0: torch default)")
@@ -33,6 +34,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=t.seed)
     p.add_argument("--valid-ratio", type=float, default=t.valid_ratio)
     p.add_argument("--eval-every", type=int, default=t.eval_every, help="epochs between rollouts (0: never)")
+    p.add_argument("--eval-rollouts", type=int, default=t.eval_rollouts, help="rollouts per evaluation")
     p.add_argument("--hidden", type=int, default=n.rnn_hidden, help="LSTM size (robomimic: 400)")
     p.add_argument("--rnn-layers", type=int, default=n.rnn_layers)
     p.add_argument("--mlp-hidden", type=int, nargs="+", default=list(n.mlp_hidden), help="T / Reg MLP (paper: 1024 1024)")
@@ -53,10 +55,11 @@ def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     net = NetworkConfig(rnn_hidden=a.hidden, rnn_layers=a.rnn_layers, mlp_hidden=tuple(a.mlp_hidden))
     tc = TrainConfig(lr=a.lr, batch_size=a.batch_size, epochs=a.epochs, steps_per_epoch=a.steps_per_epoch,
-                     valid_ratio=a.valid_ratio, seed=a.seed, eval_every=a.eval_every, device=a.device,
-                     threads=a.threads)
+                     valid_ratio=a.valid_ratio, seed=a.seed, eval_every=a.eval_every, eval_rollouts=a.eval_rollouts,
+                     device=a.device, threads=a.threads)
     req = TrainRequest(dataset=a.dataset, output_dir=a.output, network=net, train=tc, images=a.images,
-                       all_steps=a.all_steps, reg=a.reg, resume=a.resume, stop_after=a.stop_after,
+                       demos_dir=a.demos_dir, all_steps=a.all_steps, reg=a.reg, resume=a.resume,
+                       stop_after=a.stop_after,
                        progress=not a.no_progress)
     r = train(req)
     c = r.config

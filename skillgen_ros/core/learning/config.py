@@ -50,7 +50,8 @@ class TrainConfig:
     steps_per_epoch: int = 100
     valid_ratio: float = 0.1  # robomimic split_train_val_from_hdf5 default
     seed: int = 0
-    eval_every: int = 50  # epochs between evaluation rollouts (0: never)
+    eval_every: int = 50  # epochs between evaluation rollouts (0: never); robomimic rollout.rate
+    eval_rollouts: int = 50  # rollouts per evaluation (paper: 50 per checkpoint)
     initiation_window: int = 5  # first steps of each motion segment used as "end of the previous skill"
     device: str = "cpu"
     threads: int = 0  # torch CPU threads (0: torch's default); 1 is fastest on a shared, loaded machine
@@ -60,8 +61,10 @@ class TrainConfig:
             raise ParameterError(f"threads must be >= 0, got {self.threads}")
         if not (self.lr > 0 and self.batch_size >= 1 and self.epochs >= 1 and self.steps_per_epoch >= 1):
             raise ParameterError("lr must be > 0 and batch_size, epochs, steps_per_epoch >= 1")
-        if not 0 <= self.valid_ratio < 1 or self.eval_every < 0 or self.initiation_window < 1 or self.seed < 0:
-            raise ParameterError("valid_ratio in [0, 1), eval_every >= 0, initiation_window >= 1, seed >= 0")
+        if (not 0 <= self.valid_ratio < 1 or self.eval_every < 0 or self.eval_rollouts < 1
+                or self.initiation_window < 1 or self.seed < 0):
+            raise ParameterError("valid_ratio in [0, 1), eval_every >= 0, eval_rollouts >= 1, initiation_window >= 1, "
+                                 "seed >= 0")
 
 
 @dataclass(frozen=True)

@@ -42,6 +42,7 @@ class TrainRequest:
     images: bool = False  # add the front and wrist cameras (ResNet-18 + spatial softmax)
     all_steps: bool | None = None  # π on every step; None: when the dataset's method is mimicgen
     reg: bool | None = None  # train HSP-Reg's I; None: when the dataset was generated with augmentation
+    demos_dir: str = "bags"  # <dir>/<task>/ holds the source demos generation used: HSP-Class's classes
     resume: bool = False
     stop_after: int = 0  # > 0: stop (as Ctrl-C would) after this many steps in this invocation
     progress: bool = True
@@ -54,6 +55,22 @@ class TrainResult:
     best_path: str
     steps_run: int
     finished: bool
+
+
+def count_source_demos(demos_dir: str, task: str, seen: int) -> int:
+    """HSP-Class predicts an index into the task's source demos (as deployment loads them); `seen`
+    (max label + 1 in the dataset) is the fallback when the folder is absent."""
+    from ..skills.bag_demos import expand_bag_paths
+
+    folder = Path(demos_dir) / task
+    if not folder.is_dir():
+        log.warning("no source demos under %s: HSP-Class gets %d classes (the labels seen)", folder, seen)
+        return seen
+    n = len(expand_bag_paths([folder]))
+    if n < seen:
+        raise ParameterError(f"{folder} holds {n} source demos, the dataset names demo index {seen - 1}",
+                             reason="SOURCE_DEMOS_MISMATCH")
+    return n
 
 
 def _new_config(req: TrainRequest) -> HSPConfig:
@@ -71,7 +88,8 @@ def _new_config(req: TrainRequest) -> HSPConfig:
     return HSPConfig(
         task=info.task, variant=info.variant, method=info.method, skills=info.skills, low_dim_keys=LOW_DIM_KEYS,
         image_keys=images, obs_shapes={k: info.obs_shapes[k] for k in keys}, object_ids=info.object_ids,
-        num_source_demos=info.num_source_demos, all_steps=all_steps, has_termination=hsp, has_class=hsp,
+        num_source_demos=count_source_demos(req.demos_dir, info.task, info.num_source_demos) if hsp else
+        info.num_source_demos, all_steps=all_steps, has_termination=hsp, has_class=hsp,
         has_reg=reg, obs_stats=fit_obs_stats(demos, LOW_DIM_KEYS),
         initiation_norm=fit_initiation_norm(demos) if reg else None, dataset_sha256=file_sha256(req.dataset),
         dataset_path=str(req.dataset), train_demos=train, valid_demos=valid, network=req.network, train=req.train)
@@ -191,13 +209,14 @@ def _datasets(cfg: HSPConfig) -> tuple[TrainingSet, TrainingSet | None]:
     return build(cfg.train_demos), (build(cfg.valid_demos) if cfg.valid_demos else None)
 
 
-def load_evaluate_hook() -> Callable[[str], float] | None:
-    """`skillgen_ros.core.deploy.evaluate(checkpoint_path) -> success rate`, if deployment provides it."""
+def load_evaluate_hook(rollouts: int) -> Callable[[str], object] | None:
+    """`skillgen_ros.core.deploy.evaluate(checkpoint_path, rollouts=N)` (in-process rollouts on held-out
+    seeds, read as a success rate by float()), if the deployment half is installed."""
     try:
-        from .. import deploy  # noqa: PLC0415 (optional: the deployment half may be absent)
+        from ..deploy import evaluate  # noqa: PLC0415 (optional: the deployment half may be absent)
     except ImportError:
         return None
-    return getattr(deploy, "evaluate", None)
+    return lambda path: evaluate(path, rollouts=rollouts)
 
 
 def _is_better(cfg: HSPConfig, record: dict) -> tuple[str, float, bool] | None:
@@ -219,7 +238,10 @@ def _end_epoch(cfg: HSPConfig, nets, opts, out: Path, record: dict, evaluate, va
     cfg = dataclasses.replace(cfg, history=cfg.history + (record,))
     save_checkpoint(out / LAST, cfg, nets, opts)
     if evaluate is not None and cfg.train.eval_every and cfg.epoch % cfg.train.eval_every == 0:
-        record["success_rate"] = float(evaluate(str(out / LAST)))
+        result = evaluate(str(out / LAST))
+        record["success_rate"] = float(result)
+        if hasattr(result, "wilson_low"):
+            record["success_wilson95"] = [float(result.wilson_low), float(result.wilson_high)]
         cfg = dataclasses.replace(cfg, history=cfg.history[:-1] + (record,))
     ranked = _is_better(cfg, record)
     if ranked and ranked[2]:
@@ -243,7 +265,7 @@ def train(req: TrainRequest, evaluate: Callable[[str], float] | None = None) -> 
     out = Path(req.output_dir)
     data, valid = _datasets(cfg)
     if evaluate is None and cfg.train.eval_every:
-        evaluate = load_evaluate_hook()
+        evaluate = load_evaluate_hook(cfg.train.eval_rollouts)
         if evaluate is None:
             log.info("no skillgen_ros.core.deploy.evaluate: evaluation rollouts skipped, best = lowest π loss")
     spe, total = cfg.train.steps_per_epoch, cfg.train.epochs * cfg.train.steps_per_epoch

@@ -81,16 +81,12 @@ class HspNode(Node):
         if not goal.task:
             self.get_logger().info("run_task goal with an empty task rejected (clients probe readiness this way)")
             return GoalResponse.REJECT
-        if self._busy.locked():
+        if not self._busy.acquire(blocking=False):  # reserved here, released when the accepted goal ends
             self.get_logger().warning("run_task goal rejected: a rollout is in progress (BUSY)")
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
     def _execute(self, handle):
-        if not self._busy.acquire(blocking=False):  # two goals accepted in the same instant
-            self.get_logger().warning("run_task goal aborted: a rollout is in progress (BUSY)")
-            handle.abort()
-            return RunTask.Result(success=False, reason="BUSY", message="a rollout is in progress")
         try:
             return self._run(handle)
         finally:

@@ -8,6 +8,10 @@ only adds:
 - `true_object_poses()` from `sim/ground_truth/object_poses` of the current period (HSP-TAMP's
   privileged checks, and the grasp tracker's reference when `grasp_reference` is ground_truth,
   as SimGenerationEnv uses the sim's poses when its perception is ground truth);
+- a motion's observations, one per control period the driver executed (counted from the sim
+  time of joint_states before and after it), as SimGenerationEnv returns one per executed period:
+  RosGraphEnv samples the planned trajectory instead, which can be a period short (the driver's
+  settling period), and then a graph rollout counts one step fewer than the same rollout in-process;
 - readiness without skill_replay, and deploying on the scene the driver already holds.
 """
 from __future__ import annotations
@@ -31,6 +35,19 @@ LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability
 
 def _stamp(m) -> tuple[int, int]:
     return (m.header.stamp.sec, m.header.stamp.nanosec)
+
+
+def _seconds(m) -> float:
+    return m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
+
+
+def per_period(observations: list, periods: int) -> list:
+    """`periods` observations: the planned samples, held at the last planned one for periods the
+    driver spent settling (or cut short), ending on the measured final state."""
+    if periods < 1 or periods == len(observations) or len(observations) < 2:
+        return observations
+    planned, final = observations[:-1], observations[-1]
+    return [planned[min(k, len(planned) - 1)] for k in range(periods - 1)] + [final]
 
 
 class HspGraphEnv(RosGraphEnv):
@@ -82,6 +99,14 @@ class HspGraphEnv(RosGraphEnv):
             raise SkillGenError("no sim/ground_truth/object_poses for the current period (a real robot has none: "
                                 "HSP-TAMP is a sim-only reference)", reason="PERCEPTION_FAILED")
         return {o.id: convert.pose_from_msg(o.pose) for o in m.objects}
+
+    def plan_and_execute(self, target: Pose, mode: str, attached: str | None):
+        before = self._joints.latest()
+        status, obs = super().plan_and_execute(target, mode, attached)
+        after = self._joints.latest()
+        if obs and before is not None and after is not None:
+            obs = per_period(list(obs), int(round((_seconds(after) - _seconds(before)) / self.dt)))
+        return status, obs
 
     def step(self, target: Pose, gripper: float):
         obs = super().step(target, gripper)

@@ -120,3 +120,19 @@ def test_class_head_covers_every_source_demo(tmp_path):
     with pytest.raises(SkillGenError) as e:
         count_source_demos(str(REPO / "bags"), "Square", 11)
     assert e.value.reason == "SOURCE_DEMOS_MISMATCH"
+
+
+def test_a_real_sigint_stops_at_the_next_step_boundary(dataset, tmp_path):
+    import os
+    import signal
+
+    def evaluate(path):  # the user presses Ctrl-C while epoch 1's rollouts run
+        os.kill(os.getpid(), signal.SIGINT)
+        return 0.0
+
+    cfg = TrainConfig(epochs=3, steps_per_epoch=4, batch_size=8, eval_every=1, threads=1)
+    with pytest.raises(KeyboardInterrupt):
+        train(TrainRequest(str(dataset), str(tmp_path / "run"), NET, cfg, progress=False), evaluate=evaluate)
+    saved = read_checkpoint(tmp_path / "run" / "last.pt")[0]
+    assert (saved.step, saved.epoch, len(saved.history)) == (4, 1, 1)  # the epoch finished, no step after it
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler was restored

@@ -12,6 +12,8 @@ from __future__ import annotations
 import dataclasses
 import logging
 import shutil
+import signal
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -234,71 +236,116 @@ def _is_better(cfg: HSPConfig, record: dict) -> tuple[str, float, bool] | None:
 
 
 def _end_epoch(cfg: HSPConfig, nets, opts, out: Path, record: dict, evaluate, valid, device) -> HSPConfig:
+    """Validate, evaluate (rollouts) when due, rank, and write last.pt (and best.pt when better)."""
     record.update(_validate(cfg, nets, valid, device))
-    cfg = dataclasses.replace(cfg, history=cfg.history + (record,))
-    save_checkpoint(out / LAST, cfg, nets, opts)
     if evaluate is not None and cfg.train.eval_every and cfg.epoch % cfg.train.eval_every == 0:
+        save_checkpoint(out / LAST, dataclasses.replace(cfg, history=cfg.history + (record,)), nets, opts)
         result = evaluate(str(out / LAST))
         record["success_rate"] = float(result)
         if hasattr(result, "wilson_low"):
             record["success_wilson95"] = [float(result.wilson_low), float(result.wilson_high)]
-        cfg = dataclasses.replace(cfg, history=cfg.history[:-1] + (record,))
+    cfg = dataclasses.replace(cfg, history=cfg.history + (record,))
     ranked = _is_better(cfg, record)
     if ranked and ranked[2]:
         cfg = dataclasses.replace(cfg, best={"metric": ranked[0], "value": ranked[1], "epoch": cfg.epoch,
                                              "step": cfg.step})
-        save_checkpoint(out / LAST, cfg, nets, opts)
+    save_checkpoint(out / LAST, cfg, nets, opts)
+    if ranked and ranked[2]:
         shutil.copyfile(out / LAST, out / (BEST + ".tmp"))
-        Path(out / (BEST + ".tmp")).replace(out / BEST)
-    else:
-        save_checkpoint(out / LAST, cfg, nets, opts)
+        (out / (BEST + ".tmp")).replace(out / BEST)
     return cfg
 
 
+class _StopRequest:
+    """Ctrl-C during training stops at the next step boundary (a step is never half applied); a
+    second Ctrl-C interrupts at once."""
+
+    def __init__(self):
+        self.requested = False
+        self._old = None
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self._old = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def _handle(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __exit__(self, *exc):
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
+        return False
+
+
 def train(req: TrainRequest, evaluate: Callable[[str], float] | None = None) -> TrainResult:
-    """Train (or resume) until the configured epochs or `stop_after` steps; Ctrl-C saves and re-raises."""
-    from tqdm import tqdm
-
-    from .curves import plot_losses
-
+    """Train (or resume) until the configured epochs or `stop_after` steps. Ctrl-C saves last.pt at a
+    step boundary and raises KeyboardInterrupt."""
     cfg, nets, opts, device = _setup(req)
-    out = Path(req.output_dir)
     data, valid = _datasets(cfg)
     if evaluate is None and cfg.train.eval_every:
         evaluate = load_evaluate_hook(cfg.train.eval_rollouts)
         if evaluate is None:
             log.info("no skillgen_ros.core.deploy.evaluate: evaluation rollouts skipped, best = lowest π loss")
-    spe, total = cfg.train.steps_per_epoch, cfg.train.epochs * cfg.train.steps_per_epoch
-    sums: dict[str, float] = {}
-    seconds: dict[str, float] = {}
-    ran = 0
-    bar = tqdm(total=total, initial=cfg.step, disable=not req.progress, desc="train", unit="step")
-    try:
-        while cfg.step < total and not (req.stop_after and ran >= req.stop_after):
-            losses = _train_step(cfg, nets, opts, data, cfg.step, device, seconds)
-            cfg = dataclasses.replace(cfg, step=cfg.step + 1)
-            ran += 1
-            for k, v in losses.items():
-                sums[k] = sums.get(k, 0.0) + v
-            sums["_n"] = sums.get("_n", 0) + 1
-            bar.update(1)
-            if ran % 10 == 0 or cfg.step % spe == 0:
-                bar.set_postfix(loss=f"{losses['policy']:.3f}", epoch=cfg.step // spe)
-            if cfg.step % spe == 0:
+    loop = _Loop(cfg, nets, opts, device, Path(req.output_dir), evaluate)
+    with _StopRequest() as stop:
+        try:
+            loop.run(data, valid, req.stop_after, req.progress, stop)
+        except KeyboardInterrupt:
+            loop.save_if_unsaved()
+            log.warning("interrupted at step %d: saved %s; resume with --resume", loop.cfg.step, loop.out / LAST)
+            raise
+    loop.save_if_unsaved()  # stopped mid-epoch by stop_after
+    c = loop.cfg
+    return TrainResult(c, str(loop.out / LAST), str(loop.out / BEST), loop.ran,
+                       c.step >= c.train.epochs * c.train.steps_per_epoch)
+
+
+class _Loop:
+    """The step loop's state: config (step, epoch, history, best), networks, per-epoch sums."""
+
+    def __init__(self, cfg, nets, opts, device, out: Path, evaluate):
+        self.cfg, self.nets, self.opts, self.device, self.out, self.evaluate = cfg, nets, opts, device, out, evaluate
+        self.ran = 0
+        self.saved_step = cfg.step
+
+    def save_if_unsaved(self) -> None:
+        if self.cfg.step != self.saved_step:
+            save_checkpoint(self.out / LAST, self.cfg, self.nets, self.opts)
+            self.saved_step = self.cfg.step
+
+    def run(self, data: TrainingSet, valid, stop_after: int, progress: bool, stop: _StopRequest) -> None:
+        from tqdm import tqdm
+
+        from .curves import plot_losses
+
+        spe, total = self.cfg.train.steps_per_epoch, self.cfg.train.epochs * self.cfg.train.steps_per_epoch
+        sums: dict[str, float] = {}
+        seconds: dict[str, float] = {}
+        with tqdm(total=total, initial=self.cfg.step, disable=not progress, desc="train", unit="step") as bar:
+            while self.cfg.step < total and not (stop_after and self.ran >= stop_after):
+                if stop.requested:
+                    raise KeyboardInterrupt
+                losses = _train_step(self.cfg, self.nets, self.opts, data, self.cfg.step, self.device, seconds)
+                self.cfg = dataclasses.replace(self.cfg, step=self.cfg.step + 1)
+                self.ran += 1
+                for k, v in losses.items():
+                    sums[k] = sums.get(k, 0.0) + v
+                sums["_n"] = sums.get("_n", 0) + 1
+                bar.update(1)
+                if self.ran % 10 == 0 or self.cfg.step % spe == 0:
+                    bar.set_postfix(loss=f"{losses['policy']:.3f}", epoch=self.cfg.step // spe)
+                if self.cfg.step % spe:
+                    continue
                 n = sums.pop("_n")
-                record = {"epoch": cfg.step // spe, "step": cfg.step, **{k: v / n for k, v in sums.items()},
+                record = {"epoch": self.cfg.step // spe, "step": self.cfg.step, **{k: v / n for k, v in sums.items()},
                           **{f"seconds_{k}": v for k, v in seconds.items()}}
-                cfg = dataclasses.replace(cfg, epoch=cfg.step // spe)
-                cfg = _end_epoch(cfg, nets, opts, out, record, evaluate, valid, device)
-                if cfg.epoch % max(1, cfg.train.epochs // 20) == 0 or cfg.step >= total:
-                    plot_losses(cfg.history, out / "loss_curves.png")
+                self.cfg = dataclasses.replace(self.cfg, epoch=self.cfg.step // spe)
+                self.cfg = _end_epoch(self.cfg, self.nets, self.opts, self.out, record, self.evaluate, valid,
+                                      self.device)
+                self.saved_step = self.cfg.step
+                if self.cfg.epoch % max(1, self.cfg.train.epochs // 20) == 0 or self.cfg.step >= total:
+                    plot_losses(self.cfg.history, self.out / "loss_curves.png")
                 sums, seconds = {}, {}
-    except KeyboardInterrupt:
-        save_checkpoint(out / LAST, cfg, nets, opts)
-        bar.close()
-        log.warning("interrupted at step %d: saved %s; resume with --resume", cfg.step, out / LAST)
-        raise
-    bar.close()
-    if cfg.step % spe:  # stopped mid-epoch by stop_after
-        save_checkpoint(out / LAST, cfg, nets, opts)
-    return TrainResult(cfg, str(out / LAST), str(out / BEST), ran, cfg.step >= total)

@@ -136,3 +136,45 @@ def test_a_real_sigint_stops_at_the_next_step_boundary(dataset, tmp_path):
     saved = read_checkpoint(tmp_path / "run" / "last.pt")[0]
     assert (saved.step, saved.epoch, len(saved.history)) == (4, 1, 1)  # the epoch finished, no step after it
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler was restored
+
+
+def test_validation_demos_are_split_off_and_rank_the_best(tmp_path_factory, tmp_path):
+    import h5py
+
+    data = generated_dataset(tmp_path_factory)  # a fresh copy with no split yet
+    cfg = TrainConfig(epochs=2, steps_per_epoch=2, batch_size=8, valid_ratio=0.5, eval_every=0, threads=1)
+    r = train(TrainRequest(str(data), str(tmp_path / "run"), NET, cfg, progress=False))
+    assert len(r.config.valid_demos) == 1 and len(r.config.train_demos) == 2  # int(0.5 * 3)
+    with h5py.File(data, "r") as f:
+        assert sorted(n.decode() for n in f["mask/valid"][()]) == list(r.config.valid_demos)
+        assert sorted(n.decode() for n in f["mask/train"][()]) == list(r.config.train_demos)
+    hist = r.config.history
+    assert all("valid_policy" in h and "valid_termination_acc" in h for h in hist)
+    assert r.config.best["metric"] == "valid_policy"
+    assert r.config.best["value"] == min(h["valid_policy"] for h in hist)
+    # the stored split wins over a different ratio later
+    r2 = train(TrainRequest(str(data), str(tmp_path / "run2"), NET, TrainConfig(epochs=1, steps_per_epoch=1,
+                                                                                 batch_size=8, eval_every=0)))
+    assert r2.config.valid_demos == r.config.valid_demos
+
+
+def test_a_read_only_dataset_trains_with_an_unstored_split(tmp_path_factory, tmp_path, monkeypatch, caplog):
+    import h5py
+
+    from skillgen_ros.core.learning import data as data_mod
+
+    data = generated_dataset(tmp_path_factory)
+    real = h5py.File
+
+    def read_only(path, mode="r", **kw):  # what a file on a read-only mount does (root ignores chmod)
+        if mode != "r":
+            raise OSError(30, "Read-only file system")
+        return real(path, mode, **kw)
+
+    monkeypatch.setattr(data_mod.h5py, "File", read_only)
+    cfg = TrainConfig(epochs=1, steps_per_epoch=1, batch_size=8, valid_ratio=0.5, eval_every=0, threads=1)
+    r = train(TrainRequest(str(data), str(tmp_path / "run"), NET, cfg, progress=False))
+    assert r.finished and len(r.config.valid_demos) == 1
+    assert "could not store the split" in caplog.text
+    with real(data, "r") as f:
+        assert "train" not in f["mask"]

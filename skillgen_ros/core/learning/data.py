@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -25,6 +26,9 @@ from ..tasks import get_task
 from .normalization import MinMax, ObsStats
 from .rotation import pose_to_pos_rot6d
 from .termination import segments, termination_labels
+
+
+log = logging.getLogger("skillgen.train")
 
 
 class DatasetReadError(InvalidInputError):
@@ -83,23 +87,28 @@ def file_sha256(path: str) -> str:
 
 def split_train_valid(path: str, valid_ratio: float, seed: int) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """The split stored in mask/train + mask/valid; written (seeded, robomimic's rule:
-    int(ratio * N) validation demos) when the file has none yet."""
-    with h5py.File(path, "a", locking=False) as f:
+    int(ratio * N) validation demos) when the file has none yet. A read-only file gets the same
+    split without it being stored."""
+    with h5py.File(path, "r", locking=False) as f:
         names = _demo_names(f)
-        m = f.require_group("mask")
+        m = f.get("mask", {})
         if "train" in m and "valid" in m:
             train = tuple(n.decode() for n in m["train"][()])
             valid = tuple(n.decode() for n in m["valid"][()])
             if set(train) | set(valid) != set(names) or set(train) & set(valid):
                 raise DatasetReadError(f"{path}: mask/train and mask/valid do not partition the demos")
             return train, valid
-        num_valid = int(valid_ratio * len(names))
-        perm = np.random.default_rng(seed).permutation(len(names))
-        valid = tuple(sorted((names[i] for i in perm[:num_valid]), key=lambda k: int(k[5:])))
-        train = tuple(n for n in names if n not in valid)
-        for key, val in (("train", train), ("valid", valid)):
-            m.create_dataset(key, data=np.array([n.encode() for n in val], dtype="S"), track_times=False)
-        f.flush()
+    num_valid = int(valid_ratio * len(names))
+    perm = np.random.default_rng(seed).permutation(len(names))
+    valid = tuple(sorted((names[i] for i in perm[:num_valid]), key=lambda k: int(k[5:])))
+    train = tuple(n for n in names if n not in valid)
+    try:
+        with h5py.File(path, "a", locking=False) as f:
+            m = f.require_group("mask")
+            for key, val in (("train", train), ("valid", valid)):
+                m.create_dataset(key, data=np.array([n.encode() for n in val], dtype="S"), track_times=False)
+    except OSError as e:
+        log.warning("could not store the split in %s (%s); using it unstored", path, e)
     return train, valid
 
 

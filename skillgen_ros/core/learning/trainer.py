@@ -106,8 +106,10 @@ def _setup(req: TrainRequest):
         if cfg.dataset_sha256 != file_sha256(req.dataset):
             raise ParameterError(f"{req.dataset} is not the dataset {last} was trained on (sha256 differs)",
                                  reason="DATASET_CHANGED")
-        cfg = dataclasses.replace(cfg, train=dataclasses.replace(cfg.train, epochs=max(cfg.train.epochs,
-                                                                                      req.train.epochs)))
+        # a resumed run may train longer and on another device / thread count, nothing else changes
+        cfg = dataclasses.replace(cfg, train=dataclasses.replace(
+            cfg.train, epochs=max(cfg.train.epochs, req.train.epochs), device=req.train.device,
+            threads=req.train.threads))
         nets = load_networks(cfg, sds, where=str(last))
     else:
         if last.exists():

@@ -79,7 +79,8 @@ def _bad_cases(ckpt, tmp_path):
     torch.save({"some": torch.zeros(3)}, tmp_path / "other.pt")
     (tmp_path / "text.pt").write_text("not a checkpoint")
     return {"missing": (tmp_path / "nope.pt", "does not exist"), "truncated": (tmp_path / "truncated.pt", "readable"),
-            "random bytes": (tmp_path / "random.pt", "readable"), "pickle with code": (tmp_path / "evil.pt", "readable"),
+            "random bytes": (tmp_path / "random.pt", "readable"),
+            "pickle with code": (tmp_path / "evil.pt", "readable"),
             "torch pickle with code": (tmp_path / "evil_torch.pt", "readable"),
             "another format": (tmp_path / "other.pt", "not a skillgen_ros HSP checkpoint"),
             "text": (tmp_path / "text.pt", "readable"), "a directory": (tmp_path, "does not exist")}

@@ -23,7 +23,8 @@ def test_policy_obs_equals_the_recorded_row(images):
     obs = [_obs(rng, images) for _ in range(4)]
     rec = EpisodeRecorder()
     for o in obs:
-        rec.add(o, np.zeros(7), np.r_[0, 0, 0, 0, 0, 0, 1.0], -1.0, StepLabel(False, 0, 0, np.r_[0, 0, 0, 0, 0, 0, 1.0]))
+        pose = np.r_[0, 0, 0, 0, 0, 0, 1.0]
+        rec.add(o, np.zeros(7), pose, -1.0, StepLabel(False, 0, 0, pose))
     ep = rec.episode(True)
     for t, o in enumerate(obs):
         row = policy_obs(o)

@@ -111,7 +111,7 @@ def main(argv=None) -> int:
     train_steps, inf_steps = (5, 100) if args.quick else (20, 1000)
     batch = TrainConfig().batch_size
     result = {
-        "what": "HSP compute on CPU: one Adam step per network (batch 100, seq 10) and pi+T per control step (1 thread)",
+        "what": "HSP compute on CPU: one Adam step per network (batch 100, seq 10), pi+T per control step (1 thread)",
         "command": "python bench/hsp/timing.py " + " ".join(sys.argv[1:] if argv is None else argv),
         "network": {"rnn_hidden": net.rnn_hidden, "rnn_layers": net.rnn_layers, "gmm_modes": net.gmm_modes,
                     "mlp_hidden": list(net.mlp_hidden), "images": args.images, "batch": batch,

@@ -37,9 +37,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--eval-rollouts", type=int, default=t.eval_rollouts, help="rollouts per evaluation")
     p.add_argument("--hidden", type=int, default=n.rnn_hidden, help="LSTM size (robomimic: 400)")
     p.add_argument("--rnn-layers", type=int, default=n.rnn_layers)
-    p.add_argument("--mlp-hidden", type=int, nargs="+", default=list(n.mlp_hidden), help="T / Reg MLP (paper: 1024 1024)")
+    p.add_argument("--mlp-hidden", type=int, nargs="+", default=list(n.mlp_hidden),
+                   help="T / Reg MLP (paper: 1024 1024)")
     p.add_argument("--images", action="store_true", help="add front + wrist images (ResNet-18 + spatial softmax)")
-    p.add_argument("--all-steps", action="store_true", default=None, help="π on every step (default for MimicGen data)")
+    p.add_argument("--all-steps", action="store_true", default=None,
+                   help="π on every step (default for MimicGen data)")
     reg = p.add_mutually_exclusive_group()
     reg.add_argument("--reg", dest="reg", action="store_true", default=None, help="train HSP-Reg's I")
     reg.add_argument("--no-reg", dest="reg", action="store_false", help="never train HSP-Reg's I")

@@ -27,7 +27,8 @@ VERSION = 1
 def save_checkpoint(path: str | os.PathLike, config: HSPConfig, networks: Mapping[str, torch.nn.Module],
                     optimizers: Mapping[str, torch.optim.Optimizer] | None = None) -> None:
     payload = {"format": FORMAT, "version": VERSION, "config": json.dumps(config.to_json()),
-               "state_dicts": {k: {n: t.detach().cpu() for n, t in m.state_dict().items()} for k, m in networks.items()},
+               "state_dicts": {k: {n: t.detach().cpu() for n, t in m.state_dict().items()}
+                               for k, m in networks.items()},
                "optimizers": {k: o.state_dict() for k, o in (optimizers or {}).items()}}
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
@@ -69,7 +70,8 @@ def check_layout(config: HSPConfig, expect_task: str | None = None,
         task = get_task(expect_task)
         known = {o.id for o in task.objects} | ({task.obstacle.id} if task.obstacle else set())
         if not set(config.object_ids) <= known:
-            raise CheckpointError(f"{where} observes objects {list(config.object_ids)}, task {expect_task} has {sorted(known)}")
+            raise CheckpointError(f"{where} observes objects {list(config.object_ids)}, "
+                                  f"task {expect_task} has {sorted(known)}")
     if expect_obs is not None:
         for k in config.obs_keys:
             got = expect_obs.get(k)
@@ -94,7 +96,8 @@ def resolve_device(device: str) -> str:
     if device not in ("cpu", "cuda") and not device.startswith("cuda:"):
         raise ParameterError(f"device must be cpu or cuda[:N], got {device!r}")
     if device.startswith("cuda") and not torch.cuda.is_available():
-        raise ParameterError(f"device {device!r} asked for but no CUDA device is available", reason="DEVICE_UNAVAILABLE")
+        raise ParameterError(f"device {device!r} asked for but no CUDA device is available",
+                             reason="DEVICE_UNAVAILABLE")
     return device
 
 

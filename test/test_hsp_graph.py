@@ -79,18 +79,19 @@ def test_a_recorded_rollout_passes_through_the_stages_in_order(graph, checkpoint
     assert n > 0
 
 
-def test_graph_and_in_process_rollouts_agree(graph, checkpoint):
+@pytest.mark.parametrize("mode", ["class", "tamp"])
+def test_graph_and_in_process_rollouts_agree(graph, checkpoint, mode):
     from skillgen_ros.core.deploy.loading import load_policy
     from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
     from skillgen_ros.core.tasks import get_task
 
     procs, client = graph
-    res = client.run(**_goal(checkpoint))
-    policy, demos = load_policy(str(checkpoint), "Square", "class")
+    res = client.run(**_goal(checkpoint, initiation_mode=mode))
+    policy, demos = load_policy(str(checkpoint), "Square", mode)
     env = SimGenerationEnv(SimEnvConfig(perception="ground_truth", video=False))
     try:
         mine = run_rollout(env, policy, get_task("Square"), SEED, "D0",
-                           DeployConfig(mode="class", max_steps=MAX_STEPS, skill_max_steps=SKILL_MAX_STEPS), demos)
+                           DeployConfig(mode=mode, max_steps=MAX_STEPS, skill_max_steps=SKILL_MAX_STEPS), demos)
     finally:
         env.close()
     graph_ee = np.asarray(res.ee_poses).reshape(-1, 7)
@@ -106,7 +107,10 @@ def test_graph_and_in_process_rollouts_agree(graph, checkpoint):
         policy[k:k + s.policy_steps] = True
         k += s.policy_steps
     err = np.linalg.norm(graph_ee[:, :3] - mine.ee_trajectory[:, :3], axis=1)
-    assert policy.any() and err[policy].max() < 1e-5, err  # m: FK of joint_states vs pybullet's link: float noise
+    # m: the graph's EE is FK of joint_states, in-process pybullet's link frame (1e-8 apart). In class mode
+    # the rollout stays within float noise; in tamp mode the policy runs 3x longer with the nut in hand,
+    # and contact amplifies that 1e-8 after the grasp (measured: 0.5 um 18 steps in, 1.6 mm 120 steps later)
+    assert policy.any() and err[policy].max() < {"class": 1e-5, "tamp": 5e-3}[mode], err
     # motion rows: the graph env reports the planned trajectory (commanded), in-process the measured state
     assert err[~policy].max() < 0.02, err
 
@@ -122,6 +126,7 @@ def test_bad_goals_get_a_reason_and_the_node_keeps_serving(graph, checkpoint, tm
              (dict(initiation_mode="reg"), "BAD_CHECKPOINT"),  # trained without the Reg head
              (dict(initiation_mode="teleport"), "UNKNOWN_MODE"),
              (dict(variant="D9"), "UNKNOWN_VARIANT")]
+    assert all(p.proc.poll() is None for p in procs.values()), {k: p.output()[-1500:] for k, p in procs.items()}
     for goal, reason in cases:
         res = client.run(timeout=120, **_goal(checkpoint, **goal))
         assert not res.success and res.reason == reason, (goal, res.reason, res.message)

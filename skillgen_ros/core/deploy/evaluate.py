@@ -86,8 +86,13 @@ def evaluate(checkpoint_path: str, task: str | None = None, variant: str | None 
     """`rollouts` in-process rollouts of a checkpoint (or an already loaded `policy`) with
     initiation `mode` on the held-out reset seeds rollout_seed(seed, i), i = first_index, ...
     task, variant and mode default to the checkpoint's own (evaluate(path) is the trainer's hook)."""
+    from .initiation import check_mode
     from .loading import check_policy, load_demos
 
+    if task is not None:
+        get_task(task)  # UNKNOWN_TASK before the checkpoint is read
+    if mode is not None:
+        check_mode(mode)
     if policy is None:
         from ..learning.checkpoint import load_hsp
 

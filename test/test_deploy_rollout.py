@@ -223,3 +223,8 @@ def test_tamp_goal_checks_on_true_poses():
     assert skill_goal_reached(task, place, poses, handle_ee, 0.08, -1.0)
     assert not skill_goal_reached(task, place, poses, handle_ee, 0.02, 1.0)  # still holding it
     assert not skill_goal_reached(task, place, {"square_nut": lifted, "square_peg": peg_pose}, handle_ee, 0.08, -1.0)
+
+
+def test_tamp_without_ground_truth_is_perception_failed():
+    res, _ = _run(mode="tamp")  # the fake world has no true_object_poses and no sim world
+    assert res.reason is DeployReason.PERCEPTION_FAILED and "ground truth" in res.message

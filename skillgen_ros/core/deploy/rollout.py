@@ -183,7 +183,13 @@ class _Rollout:
             self.policy_s += time.perf_counter() - t
             return fired
         width = float(np.sum(self.obs.gripper))
-        return skill_goal_reached(self.task, skill, true_object_poses(self.env), self.obs.ee_pose, width, self.gripper)
+        return skill_goal_reached(self.task, skill, self.truth(), self.obs.ee_pose, width, self.gripper)
+
+    def truth(self) -> dict:
+        try:
+            return true_object_poses(self.env)
+        except (SkillGenError, TimeoutError) as e:
+            raise _Fail(DeployReason.PERCEPTION_FAILED, f"no ground truth for HSP-TAMP: {e}") from e
 
     def run_policy(self, skill) -> tuple[int, str]:
         self.policy.start_skill(skill.index)
@@ -231,7 +237,7 @@ class _Rollout:
     def skill(self, skill) -> None:
         self.progress(skill.index, "initiation", self.steps)
         poses = self.estimate(skill)
-        true = true_object_poses(self.env) if self.cfg.mode == "tamp" else {}
+        true = self.truth() if self.cfg.mode == "tamp" else {}
         choice = self.ask(predict_initiation, self.cfg.mode, self.policy, self.ask(self.obs_fn, self.obs), skill,
                           self.task, self.demos, poses[skill.object_id], true.get(skill.object_id), self.chosen,
                           self.rng, self.cfg.initiation_candidates)

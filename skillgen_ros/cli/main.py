@@ -22,6 +22,8 @@ DELEGATED = {
     "demos": ("skillgen_ros.cli.demos", "record source demonstrations (scripted demonstrator or teleop)"),
     "generate": ("skillgen_ros.cli.generate", "run a generation through the node graph (the main job)"),
     "dataset": ("skillgen_ros.cli.dataset", "validate or merge generated datasets (shards)"),
+    "deploy": ("skillgen_ros.cli.deploy", "evaluate a Hybrid Skill Policy checkpoint (rollouts on held-out seeds)"),
+    "train": ("skillgen_ros.cli.train", "learn a Hybrid Skill Policy (π, T, I) from a generated dataset"),
 }
 
 

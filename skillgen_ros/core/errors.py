@@ -43,3 +43,9 @@ class AnnotationError(SkillGenError):
 
 class ParameterError(SkillGenError):
     reason = "INVALID_PARAMETER"
+
+
+class CheckpointError(SkillGenError):
+    """A policy checkpoint that is missing, unreadable, not ours, or for another task/observation layout."""
+
+    reason = "BAD_CHECKPOINT"

@@ -167,8 +167,8 @@ class DriverNode(Node):
     # ----------------------------------------------------------------- stepping
     def _stamp(self) -> Time:
         if self.mode == "lockstep":
-            t = self._clock_base + self.world.time
-            return Time(sec=int(t), nanosec=int(round((t - int(t)) * 1e9)) % 1_000_000_000)
+            ns = int(round((self._clock_base + self.world.time) * 1e9))  # t = 1.9999999996 is 2 s, not 1 s
+            return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
         return self.get_clock().now().to_msg()
 
     def _advance(self, fn) -> None:

@@ -1,0 +1,242 @@
+"""bench/hsp: Hybrid Skill Policies vs the MimicGen BC-RNN baseline, on the paper's protocol (issue 23, part 3).
+
+Per cell (task, variant): generate N demos (default 1000) with skillgen + initiation augmentation
+(t = 0.08 m, r = 80 deg) for HSP and N with MimicGen for the baseline; train one HSP network set
+(pi, T + Class head, Reg I) on the skillgen data, shared by HSP-TAMP, HSP-Class and HSP-Reg (pi is
+trained once), and one BC-RNN-GMM on every step of the MimicGen data; every `--chunk-steps` training
+steps evaluate the checkpoint with `--rollouts` (50) rollouts per method on held-out reset seeds
+(core/deploy/seeds.py) and keep each method's best checkpoint, as the paper reports "the
+best-performing policy". Every cell reports 95% Wilson intervals beside the paper's numbers.
+
+Budgets: a network trains until `--budget-steps` (robomimic's 200k by default) or `--budget-minutes`
+of training wall time (checked at chunk ends; evaluation time excluded), whichever comes first.
+On these 2-core CPUs one BC-RNN-GMM step at robomimic's sizes is ~100 ms (bench/results/hsp_timing.json),
+so CPU runs use a time budget and may use smaller networks (--hidden, --mlp-hidden), both recorded in the JSON.
+
+Results go to --out (bench/results/hsp.json) after every dataset shard, training chunk and
+evaluation, so an interrupted run redoes only what is unfinished: rerun the same command.
+Datasets and checkpoints live under --work (out/bench_hsp, not in git).
+
+    # the paper's cells on CPU: 25-minute networks, low-dim observations (hours; resumable)
+    .venv/bin/python bench/hsp/run.py --budget-minutes 25
+    # robomimic's full budget where a GPU is lent
+    .venv/bin/python bench/hsp/run.py --device cuda --budget-steps 200000 --out bench/results/hsp_cuda.json
+    # the budget's cost on one cell (Square D1): the budget vs 3x
+    .venv/bin/python bench/hsp/run.py --cells Square/D1 --budget-minutes 75 --out bench/results/hsp_budget3x.json
+    # the data-scaling row: Square D2, HSP-Class, 200 demos
+    .venv/bin/python bench/hsp/run.py --cells Square/D2 --methods HSP-Class --demos 200 --out bench/results/hsp_200demos.json
+    # smoke (seconds of training, 2 rollouts)
+    .venv/bin/python bench/hsp/run.py --cells Square/D0 --demos 3 --rollouts 2 --chunk-steps 5 --budget-steps 10 \
+        --hidden 32 --mlp-hidden 32 --work /tmp/bench_hsp_smoke --out /tmp/bench_hsp_smoke/hsp.json
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
+from bench.machine import machine_info  # noqa: E402
+
+CELLS = ("Square/D0", "Square/D1", "Square/D2", "Threading/D0", "Threading/D1", "NutAssembly/D0", "NutAssembly/D1")
+METHODS = ("HSP-TAMP", "HSP-Class", "HSP-Reg", "MimicGen-BC")
+MODE = {"HSP-TAMP": "tamp", "HSP-Class": "class", "HSP-Reg": "reg", "MimicGen-BC": "bc"}
+NETWORK = {"HSP-TAMP": "hsp", "HSP-Class": "hsp", "HSP-Reg": "hsp", "MimicGen-BC": "bc"}
+# The paper's success rates for these cells (Fig. 5 table, as issue 23 quotes it), percent.
+PAPER = {
+    "Square/D0": {"MimicGen-BC": 90.7, "HSP-TAMP": 100, "HSP-Class": 100, "HSP-Reg": 94},
+    "Square/D1": {"MimicGen-BC": 73.3, "HSP-TAMP": 100, "HSP-Class": 98, "HSP-Reg": 62},
+    "Square/D2": {"MimicGen-BC": 49.3, "HSP-TAMP": 94, "HSP-Class": 94, "HSP-Reg": 52},
+    "Threading/D0": {"MimicGen-BC": 98, "HSP-TAMP": 100, "HSP-Class": 92, "HSP-Reg": 94},
+    "Threading/D1": {"MimicGen-BC": 60.7, "HSP-TAMP": 72, "HSP-Class": 66, "HSP-Reg": 60},
+    "NutAssembly/D0": {"MimicGen-BC": 60, "HSP-TAMP": 100, "HSP-Class": 92, "HSP-Reg": 94},
+    "NutAssembly/D1": {"MimicGen-BC": 16, "HSP-TAMP": 72, "HSP-Class": 78, "HSP-Reg": 20},
+}
+
+
+class Store:
+    """The results JSON, rewritten atomically after every unit of work."""
+
+    def __init__(self, path: Path, args):
+        self.path = path
+        self.data = json.loads(path.read_text()) if path.exists() else {}
+        self.data["machine"] = machine_info()
+        self.data["protocol"] = {k: v for k, v in vars(args).items() if k not in ("cells", "methods")}
+        self.data.setdefault("cells", {})
+
+    def cell(self, name: str) -> dict:
+        return self.data["cells"].setdefault(name, {"datasets": {}, "networks": {}, "methods": {}})
+
+    def save(self) -> None:
+        tmp = self.path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(self.data, indent=2))
+        os.replace(tmp, self.path)
+
+
+def rerun_command(cell: str, a) -> str:
+    keep = [f"--cells {cell}", f"--demos {a.demos}", f"--rollouts {a.rollouts}", f"--seed {a.seed}",
+            f"--budget-steps {a.budget_steps}", f"--chunk-steps {a.chunk_steps}", f"--device {a.device}",
+            f"--hidden {a.hidden}", f"--mlp-hidden {' '.join(map(str, a.mlp_hidden))}", f"--hsp-data {a.hsp_data}",
+            f"--work {a.work}", f"--out {a.out}"]
+    if a.budget_minutes:
+        keep.append(f"--budget-minutes {a.budget_minutes}")
+    return ".venv/bin/python bench/hsp/run.py " + " ".join(keep)
+
+
+def make_dataset(store: Store, cell: str, network: str, a) -> str:
+    """N successful demos in shards of attempts (resumable per shard), merged in attempt order."""
+    from skillgen_ros.core.dataset.hdf5 import merge_datasets
+    from skillgen_ros.core.generation.session import RunRequest, run_generation
+    from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
+    from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
+    from skillgen_ros.core.tasks import get_task
+
+    task, variant = cell.split("/")
+    method, augment = ("skillgen", a.hsp_data == "ia") if network == "hsp" else ("mimicgen", False)
+    root = Path(a.work) / cell.replace("/", "_") / f"data_{network}_{a.demos}"
+    rec = store.cell(cell)["datasets"].setdefault(network, {"method": method, "augment": augment, "shards": []})
+    merged = root / "demo.hdf5"
+    if rec.get("path") and merged.exists():
+        return str(merged)
+    spec = get_task(task)
+    demos = load_source_demos(expand_bag_paths([str(ROOT / "bags" / task)]), spec)
+    env = SimGenerationEnv(SimEnvConfig(perception="ground_truth", video=False, seed=a.seed))
+    try:
+        while sum(s["successes"] for s in rec["shards"]) < a.demos:
+            k = len(rec["shards"])
+            first = sum(s["attempts"] for s in rec["shards"])
+            out = root / f"shard_{k:03d}"
+            shutil.rmtree(out, ignore_errors=True)  # an interrupted shard starts over
+            want = min(a.shard, a.demos - sum(s["successes"] for s in rec["shards"]))
+            t = time.time()
+            r = run_generation(env, demos, spec, RunRequest(task=task, variant=variant, method=method, augment=augment,
+                                                            attempts=want * a.max_attempts_factor, target_successes=want,
+                                                            seed=a.seed, first_index=first, output_dir=str(out),
+                                                            video_attempts=0), write_report=False, keep_timings=False)
+            rec["shards"].append({"dir": str(out), "first_index": first, "attempts": r.attempts,
+                                  "successes": r.successes, "seconds": time.time() - t})
+            store.save()
+            if r.successes == 0:
+                raise SystemExit(f"{cell} {method}: no successes in {r.attempts} attempts; giving up")
+    finally:
+        env.close()
+    merged.unlink(missing_ok=True)
+    merge_datasets([str(Path(s["dir"]) / "demo.hdf5") for s in rec["shards"] if s["successes"]], str(merged))
+    att = sum(s["attempts"] for s in rec["shards"])
+    ok = sum(s["successes"] for s in rec["shards"])
+    rec.update(path=str(merged), demos=ok, attempts=att, generation_rate=ok / att if att else 0.0)
+    store.save()
+    return str(merged)
+
+
+def evaluate_methods(store: Store, cell: str, network: str, ckpt: Path, step: int, methods, a) -> None:
+    from skillgen_ros.core.deploy import evaluate
+    from skillgen_ros.core.learning.checkpoint import load_hsp
+
+    task, variant = cell.split("/")
+    c = store.cell(cell)
+    policy = load_hsp(str(ckpt), device=a.device, expect_task=task)  # pi shared by the HSP methods
+    for m in methods:
+        t = time.time()
+        s = evaluate(str(ckpt), task, variant, MODE[m], a.rollouts, a.seed, device=a.device, policy=policy)
+        rec = {**s.to_json(), "step": step, "eval_seconds": time.time() - t}
+        rec.pop("reset_seeds", None)
+        mrec = c["methods"].setdefault(m, {"evals": [], "paper": PAPER.get(cell, {}).get(m)})
+        mrec["evals"].append(rec)
+        if "best" not in mrec or rec["success_rate"] > mrec["best"]["success_rate"]:
+            mrec["best"] = rec
+            shutil.copyfile(ckpt, ckpt.parent / f"best_{m}.pt")
+        print(f"  {cell} {m} @ step {step}: {s.line()}", flush=True)
+        store.save()
+
+
+def train_network(store: Store, cell: str, network: str, dataset: str, methods, a) -> None:
+    """Train in chunks (the trainer resumes from last.pt), evaluating each chunk's checkpoint."""
+    from skillgen_ros.core.learning.config import NetworkConfig, TrainConfig
+    from skillgen_ros.core.learning.trainer import TrainRequest, train
+
+    out = Path(a.work) / cell.replace("/", "_") / f"net_{network}_{a.demos}"
+    rec = store.cell(cell)["networks"].setdefault(network, {"train_seconds": 0.0, "steps": 0, "finished": False})
+    rec.update(dataset=dataset, hidden=a.hidden, mlp_hidden=list(a.mlp_hidden), budget_steps=a.budget_steps,
+               budget_minutes=a.budget_minutes)
+    net = NetworkConfig(rnn_hidden=a.hidden, mlp_hidden=tuple(a.mlp_hidden))
+    epochs = max(1, a.budget_steps // a.steps_per_epoch)
+    tc = TrainConfig(epochs=epochs, steps_per_epoch=a.steps_per_epoch, eval_every=0, device=a.device, seed=a.seed)
+    while not rec["finished"] and not (a.budget_minutes and rec["train_seconds"] >= 60 * a.budget_minutes):
+        t = time.time()
+        r = train(TrainRequest(dataset=dataset, output_dir=str(out), network=net, train=tc,
+                               resume=(out / "last.pt").exists(), stop_after=a.chunk_steps, progress=False))
+        rec["train_seconds"] += time.time() - t
+        rec["steps"], rec["finished"] = int(r.config.step), bool(r.finished or r.config.step >= a.budget_steps)
+        rec["ms_per_train_step"] = 1000 * rec["train_seconds"] / max(1, rec["steps"])
+        store.save()
+        evaluate_methods(store, cell, network, Path(r.last_path), int(r.config.step), methods, a)
+
+
+def run_cell(store: Store, cell: str, a) -> None:
+    methods = [m for m in a.methods if m in METHODS]
+    c = store.cell(cell)
+    c["rerun"] = rerun_command(cell, a)
+    c["paper"] = PAPER.get(cell, {})
+    for network in ("hsp", "bc"):
+        mine = [m for m in methods if NETWORK[m] == network]
+        if mine:
+            dataset = make_dataset(store, cell, network, a)
+            train_network(store, cell, network, dataset, mine, a)
+    c["table"] = {m: c["methods"][m]["best"] for m in methods if "best" in c["methods"].get(m, {})}
+    store.save()
+
+
+def summary(store: Store) -> dict:
+    """Per-method averages over the cells done, and HSP-Class minus BC on the D1/D2 cells."""
+    rates = {m: {n: c["methods"][m]["best"]["success_rate"] for n, c in store.data["cells"].items()
+                 if "best" in c["methods"].get(m, {})} for m in METHODS}
+    avg = {m: 100 * sum(v.values()) / len(v) for m, v in rates.items() if v}
+    hard = [n for n in rates["HSP-Class"] if n.split("/")[1] in ("D1", "D2") and n in rates["MimicGen-BC"]]
+    gap = (100 * sum(rates["HSP-Class"][n] - rates["MimicGen-BC"][n] for n in hard) / len(hard)) if hard else None
+    return {"average_percent": avg, "hsp_class_minus_bc_d1_d2_points": gap, "cells_done": sorted(store.data["cells"])}
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--cells", nargs="+", default=list(CELLS))
+    p.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    p.add_argument("--demos", type=int, default=1000, help="generated demos per dataset (paper: 1000)")
+    p.add_argument("--rollouts", type=int, default=50, help="evaluation rollouts per checkpoint (paper: 50)")
+    p.add_argument("--seed", type=int, default=0, help="generation run seed and evaluation seed")
+    p.add_argument("--hsp-data", default="ia", choices=["ia", "plain"],
+                   help="HSP's shared network trains on skillgen+IA data (ia, the issue's choice) or plain skillgen")
+    p.add_argument("--budget-steps", type=int, default=200_000, help="training steps per network (robomimic: 200k)")
+    p.add_argument("--budget-minutes", type=float, default=0.0, help="training wall minutes per network (0: none)")
+    p.add_argument("--chunk-steps", type=int, default=5000, help="steps between evaluations (robomimic: 50 epochs x 100)")
+    p.add_argument("--steps-per-epoch", type=int, default=100)
+    p.add_argument("--hidden", type=int, default=400, help="LSTM size (robomimic 400; smaller must be disclosed)")
+    p.add_argument("--mlp-hidden", type=int, nargs="+", default=[1024, 1024])
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--shard", type=int, default=100, help="demos per generation shard (the resume granularity)")
+    p.add_argument("--max-attempts-factor", type=int, default=5)
+    p.add_argument("--work", default="out/bench_hsp", help="datasets and checkpoints (not in git)")
+    p.add_argument("--out", default=str(ROOT / "bench" / "results" / "hsp.json"))
+    a = p.parse_args(argv)
+    unknown = [c for c in a.cells if c.split("/")[0] not in ("Square", "Threading", "NutAssembly", "PickPlace")]
+    if unknown:
+        p.error(f"unknown cells {unknown}; e.g. {CELLS[0]}")
+    Path(a.work).mkdir(parents=True, exist_ok=True)
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    store = Store(Path(a.out), a)
+    for cell in a.cells:
+        print(f"== {cell}", flush=True)
+        run_cell(store, cell, a)
+        store.data["summary"] = summary(store)
+        store.save()
+    print(json.dumps(store.data["summary"], indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,91 @@
+"""The pure pieces of HSP learning: termination labels, the 5-consecutive rule, 6D rotations,
+[-1, 1] normalization, sequence windows and the initiation samples."""
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from skillgen_ros.core.errors import InvalidInputError
+from skillgen_ros.core.learning.data import DemoArrays, TrainingSet, initiation_indices
+from skillgen_ros.core.learning.normalization import MinMax, ObsStats
+from skillgen_ros.core.learning.rotation import (pos_rot6d_to_pose, pose_to_pos_rot6d, quat_to_rotation_6d,
+                                                 rotation_6d_to_matrix, rotation_6d_to_quat)
+from skillgen_ros.core.learning.termination import TerminationFilter, termination_labels
+
+
+def test_termination_labels_flip_the_last_half_of_each_motion_segment():
+    # motion 6 | skill 3 | motion 5 | skill 2 | motion 1 | skill 1
+    mp = np.array([1, 1, 1, 1, 1, 1, 0, 0, 0, 1, 1, 1, 1, 1, 0, 0, 1, 0], np.uint8)
+    expected = [1, 1, 1, 0, 0, 0,  # L=6: first 3 terminate, last 3 running
+                0, 0, 0,
+                1, 1, 1, 0, 0,  # L=5: first ceil(5/2)=3 terminate, last 2 running
+                0, 0,
+                1,  # L=1: nothing flips
+                0]
+    np.testing.assert_array_equal(termination_labels(mp), expected)
+    np.testing.assert_array_equal(termination_labels(np.zeros(4)), [0, 0, 0, 0])
+    np.testing.assert_array_equal(termination_labels(np.ones(4)), [1, 1, 0, 0])
+    with pytest.raises(InvalidInputError):
+        termination_labels(np.zeros((2, 2)))
+
+
+def test_termination_needs_five_consecutive_positives():
+    f = TerminationFilter()
+    seq = [1, 1, 1, 1, 0, 1, 1, 1, 1, 1, 1]
+    assert [f.update(bool(x)) for x in seq] == [False] * 9 + [True, True]
+    f.reset()
+    assert [f.update(True) for _ in range(5)] == [False] * 4 + [True]
+    with pytest.raises(InvalidInputError):
+        TerminationFilter(0)
+
+
+def test_rotation_6d_round_trip():
+    R = Rotation.random(200, random_state=3)
+    q = R.as_quat()
+    q6 = quat_to_rotation_6d(q)
+    assert q6.shape == (200, 6)
+    back = Rotation.from_quat(rotation_6d_to_quat(q6))
+    assert np.max((back.inv() * R).magnitude()) < 1e-9
+    np.testing.assert_allclose(rotation_6d_to_matrix(q6), R.as_matrix(), atol=1e-12)
+    # any 6 numbers (not parallel) give a proper rotation: Gram-Schmidt
+    m = rotation_6d_to_matrix(np.random.default_rng(0).normal(size=(50, 6)))
+    np.testing.assert_allclose(m @ np.swapaxes(m, -1, -2), np.broadcast_to(np.eye(3), m.shape), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(m), 1.0, atol=1e-12)
+    pose = np.c_[np.random.default_rng(1).normal(size=(5, 3)), q[:5]]
+    out = pos_rot6d_to_pose(pose_to_pos_rot6d(pose))
+    np.testing.assert_allclose(out[:, :3], pose[:, :3])
+    np.testing.assert_allclose(np.abs(np.sum(out[:, 3:] * pose[:, 3:], 1)), 1.0, atol=1e-12)  # q ~ -q
+    with pytest.raises(InvalidInputError):
+        rotation_6d_to_matrix(np.array([0, 0, 0, 1, 0, 0.0]))
+
+
+def test_minmax_maps_onto_minus_one_one_and_back():
+    x = np.random.default_rng(2).normal(size=(100, 9)) * [1, 2, 3, 4, 5, 6, 7, 8, 0] + 3
+    mm = MinMax.fit(x)
+    y = mm.normalize(x)
+    np.testing.assert_allclose(y[:, :8].min(0), -1, atol=1e-12)
+    np.testing.assert_allclose(y[:, :8].max(0), 1, atol=1e-12)
+    np.testing.assert_allclose(y[:, 8], -1)  # a constant dimension maps to -1 (Diffusion Policy)
+    np.testing.assert_allclose(mm.unnormalize(y), x, atol=1e-12)
+    again = MinMax.from_json(mm.to_json())
+    np.testing.assert_allclose(again.unnormalize(again.normalize(x)), x, atol=1e-12)
+
+
+def _demo(mp):
+    n = len(mp)
+    return DemoArrays({"a": np.arange(n, dtype=float)[:, None]}, np.arange(n, dtype=np.float32)[:, None].repeat(7, 1),
+                      np.array(mp, np.uint8), np.full(n, 4), np.tile([0.1, 0.2, 0.3, 0, 0, 0, 1.0], (n, 1)))
+
+
+def test_windows_stay_inside_skill_segments_and_pad_at_the_end():
+    d = _demo([1, 1, 0, 0, 0, 1, 1, 1, 1, 0, 0])
+    stats = ObsStats.fit({"a": d.obs["a"]})
+    ts = TrainingSet([d], ["a"], [], stats, 4, False, 5, None)
+    w = ts.windows(np.arange(len(ts.win_start)))
+    np.testing.assert_array_equal(w, [[2, 3, 4, 4], [3, 4, 4, 4], [4, 4, 4, 4], [9, 10, 10, 10], [10, 10, 10, 10]])
+    all_steps = TrainingSet([d], ["a"], [], stats, 4, True, 5, None)
+    assert len(all_steps.win_start) == 11 and list(all_steps.windows(np.array([9]))[0]) == [9, 10, 10, 10]
+    # initiation samples: the first min(window, ceil(L/2)) steps of each motion segment
+    assert initiation_indices(d.mp_step, 5) == [(0, 0), (5, 5), (6, 5)]
+    np.testing.assert_array_equal(ts.init_idx, [0, 5, 6])
+    np.testing.assert_array_equal(ts.init_cls, [4, 4, 4])
+    np.testing.assert_allclose(ts.obs["a"][:, 0], (np.arange(11) - 5) / (d.obs["a"].std() + 1e-3), rtol=1e-6)

@@ -164,4 +164,13 @@ def _ros_value(v) -> str:
         return "true" if v else "false"
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_ros_value(x) for x in v) + "]"
+    if isinstance(v, str) and (not v or _yaml_reads(v) != v):  # '' or 'true' must stay strings
+        return "'" + v.replace("'", "''") + "'"
     return str(v)
+
+
+def _yaml_reads(text: str):
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return None

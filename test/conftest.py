@@ -21,10 +21,12 @@ from pathlib import Path
 import pytest
 
 from skillgen_ros import rosenv
-from skillgen_ros.testing.domains import acquire_domain
-from skillgen_ros.testing.wait import wait_for  # noqa: F401  (imported from here by tests)
 
-pytest_plugins = ["skillgen_ros.testing"]
+pytest.register_assert_rewrite("skillgen_ros.testing")  # as pytest_plugins would, before it is imported here
+from skillgen_ros.testing.domains import acquire_domain  # noqa: E402
+from skillgen_ros.testing.wait import wait_for  # noqa: E402,F401  (imported from here by tests)
+
+pytest_plugins = ["skillgen_ros.testing", "pytester"]
 
 REPO = Path(__file__).resolve().parents[1]
 VENV_BIN = Path(sys.prefix) / "bin"

@@ -59,3 +59,22 @@ def test_sim_driver_starts_in_the_requested_scene(sim_driver):
     r = sim_driver.reset_scene("Square", "D1", 3)
     assert r.success and r.reason_code == "OK"
     assert sim_driver.process.alive
+
+
+@pytest.mark.parametrize("mock_driver", [{"cameras": ["front"], "lockstep_timeout_s": 0.2}], indirect=True)
+def test_mock_driver_takes_parameters_by_indirect_parametrization(mock_driver, ros_node):
+    assert "cameras ['front']" in mock_driver.output()
+    assert ros_node.count_publishers("/camera/wrist/image") == 0
+
+
+def test_graph_handle_finds_each_nodes_process_containers_included():
+    from skillgen_ros.graphs import graph_names, load_graph, processes
+    from skillgen_ros.testing.handles import GraphHandle
+
+    for name in graph_names():
+        nodes = load_graph(name)
+        launches = processes(nodes)
+        h = GraphHandle(name, 0, "", nodes, launches, None)  # ProcessLaunch stands in for the processes
+        for n in nodes:
+            p = h.process(n.exe)
+            assert p.label == n.exe or (n.container and p.label.startswith(f"{n.container} (") and n.exe in p.label)

@@ -55,6 +55,19 @@ def _fq(namespace: str, name: str) -> str:
     return f"{namespace.rstrip('/')}/{name}" if namespace else f"/{name}"
 
 
+def _process_index(nodes: list[NodeLaunch]) -> list[int]:
+    """Each node's process, as graphs.processes orders them (a container where its first node is)."""
+    index, containers = [], {}
+    for n in nodes:
+        if n.container is None:
+            index.append(len(set(index)))
+        else:
+            if n.container not in containers:
+                containers[n.container] = len(set(index))
+            index.append(containers[n.container])
+    return index
+
+
 class GraphHandle:
     """A running graph: its nodes' names, processes and logs. `stop()` ends every process."""
 
@@ -68,14 +81,7 @@ class GraphHandle:
 
     def process(self, node: str) -> RosProcess:
         """The process running `node` (exe or name; a container's process for a node inside one)."""
-        index, containers = [], {}
-        for n in self.nodes:  # the order graphs.processes starts them in
-            if n.container is None:
-                index.append(len(containers) + sum(1 for m in self.nodes[:len(index)] if m.container is None))
-            else:
-                index.append(containers.setdefault(n.container, len(containers) + sum(
-                    1 for m in self.nodes[:len(index)] if m.container is None)))
-        for n, i in zip(self.nodes, index):
+        for n, i in zip(self.nodes, _process_index(self.nodes)):
             if node in (n.exe, n.name) and i < len(self.processes):
                 return self.processes[i]
         raise KeyError(f"graph '{self.name}' has no node '{node}'")

@@ -150,8 +150,7 @@ def _driver(graph, ros_node, request, exe: str, graph_name: str, params: dict):
 
     namespace = params.pop("namespace", "")
     g = graph(graph_name, namespace=namespace, **{exe: params})
-    handle = DriverHandle(g, ros_node, exe, _ready_timeout(request.config))
-    return handle
+    return DriverHandle(g, ros_node, exe, _ready_timeout(request.config))
 
 
 @pytest.fixture

@@ -132,8 +132,16 @@ def graph(ros_domain, ros_node, ros_artifacts, request):
         return h
 
     yield _launch
-    for h in reversed(handles):
-        h.stop()
+    try:
+        for h in reversed(handles):
+            h.stop()
+    finally:
+        from skillgen_ros.testing.processes import stop_all
+
+        for p in ros_artifacts.processes:  # whatever a failed stop above left running
+            if p.alive:
+                stop_all()
+                break
 
 
 def _driver_kwargs(request, fixture: str) -> dict:
@@ -174,6 +182,10 @@ def sim_driver(graph, ros_node, request):
         kw.update(initial_task=task, initial_variant=variant, initial_seed=int(seed))
     handle = _driver(graph, ros_node, request, "sim_driver", "sim", kw)
     if task:
-        handle.wait_ground_truth(_ready_timeout(request.config))
+        try:
+            handle.wait_ground_truth(_ready_timeout(request.config))
+        except BaseException:
+            handle.close()
+            raise
     yield handle
     handle.close()

@@ -22,7 +22,8 @@ import pytest
 
 from skillgen_ros import rosenv
 
-pytest.register_assert_rewrite("skillgen_ros.testing")  # as pytest_plugins would, before it is imported here
+if "skillgen_ros.testing" not in sys.modules:  # not yet loaded by the entry point: mark it as pytest_plugins
+    pytest.register_assert_rewrite("skillgen_ros.testing")  # would, before it is imported here (no warning)
 from skillgen_ros.testing.domains import acquire_domain  # noqa: E402
 from skillgen_ros.testing.wait import wait_for  # noqa: E402,F401  (imported from here by tests)
 

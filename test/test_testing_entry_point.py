@@ -11,7 +11,9 @@ the `.pth` files inside it, among them the editable finder of skillgen_ros, are 
 the only importable skillgen_ros is the one in the temp venv (asserted). The inner session does
 not pass `-p skillgen_ros.testing`; the fixture is found only if pytest loaded the plugin from the
 distribution's entry point, which `pluginmanager.list_plugin_distinfo()` confirms, and
-`-p no:skillgen_ros.testing` (the entry point's name) turns it off again.
+`-p no:skillgen_ros.testing` (the entry point's name) turns it off again. Last, our own conftest
+(which names the plugin in `pytest_plugins`) runs there too: loaded twice under one name, it must
+neither fail nor warn.
 """
 from __future__ import annotations
 
@@ -72,3 +74,14 @@ def test_plugin_loads_from_the_entry_point_in_a_fresh_venv(tmp_path):
                          cwd=tmp_path / "t", timeout=120)
     assert off.returncode != 0 and "fixture 'ros_domain' not found" in off.stdout, off.stdout + off.stderr
     assert sys.prefix != str(env_dir)
+
+    # our own conftest (pytest_plugins = ["skillgen_ros.testing"]) where the entry point has already
+    # registered the plugin, as after the lead's reinstall: no duplicate registration, no warning
+    suite = tmp_path / "suite"
+    suite.mkdir()
+    for name in ("conftest.py", "test_testing_domains.py"):
+        shutil.copy(REPO / "test" / name, suite / name)
+    both = subprocess.run([py, "-m", "pytest", "-p", "no:cacheprovider", "-q", "-W", "error::pytest.PytestWarning",
+                           "-W", "ignore::pytest.PytestRemovedIn10Warning", str(suite)],
+                          capture_output=True, text=True, env=env, cwd=suite, timeout=120)
+    assert both.returncode == 0 and "4 passed" in both.stdout, both.stdout + both.stderr

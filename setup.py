@@ -45,5 +45,10 @@ setup(
     maintainer_email="skillgen@example.com",
     description="SkillMimicGen demonstration generation for ROS 2 Jazzy",
     license="Apache-2.0",
-    entry_points={"console_scripts": [f"{k} = {v}" for k, v in EXECUTABLES.items()]},
+    entry_points={
+        "console_scripts": [f"{k} = {v}" for k, v in EXECUTABLES.items()],
+        # The pytest plugin (docs/testing.md). The entry point's name is the module's name, so a
+        # conftest's `pytest_plugins = ["skillgen_ros.testing"]` finds it registered and skips it.
+        "pytest11": ["skillgen_ros.testing = skillgen_ros.testing"],
+    },
 )

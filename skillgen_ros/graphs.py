@@ -116,11 +116,12 @@ def _share_dir() -> Path:
     return Path(get_package_share_directory(PACKAGE))
 
 
-def load_graphs() -> dict:
-    """The package's graphs.yaml, plus (overriding by name) the file named by $SKILLGEN_GRAPHS."""
+def load_graphs(extra: str | os.PathLike | None = None) -> dict:
+    """The package's graphs.yaml, plus (overriding by name) `extra`, default the file named by
+    $SKILLGEN_GRAPHS."""
     text = resources.files(PACKAGE).joinpath("graphs.yaml").read_text()
     graphs = dict(yaml.safe_load(text)["graphs"])
-    extra = os.environ.get("SKILLGEN_GRAPHS")
+    extra = extra or os.environ.get("SKILLGEN_GRAPHS")
     if extra:
         try:
             graphs.update((yaml.safe_load(Path(extra).read_text()) or {}).get("graphs", {}))
@@ -133,8 +134,8 @@ def graph_names() -> list[str]:
     return sorted(load_graphs())
 
 
-def load_graph(name: str, params: Path | None = None) -> list[NodeLaunch]:
-    graphs = load_graphs()
+def load_graph(name: str, params: Path | None = None, graphs_file: str | os.PathLike | None = None) -> list[NodeLaunch]:
+    graphs = load_graphs(graphs_file)
     if name not in graphs:
         raise UnknownGraphError(f"no graph named '{name}'; known graphs: {', '.join(sorted(graphs))}")
     known = set(node_executables())
@@ -163,4 +164,13 @@ def _ros_value(v) -> str:
         return "true" if v else "false"
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_ros_value(x) for x in v) + "]"
+    if isinstance(v, str) and (not v or _yaml_reads(v) != v):  # '' or 'true' must stay strings
+        return "'" + v.replace("'", "''") + "'"
     return str(v)
+
+
+def _yaml_reads(text: str):
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return None

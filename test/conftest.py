@@ -1,47 +1,54 @@
 """Shared pytest fixtures.
 
-Every test that starts a ROS context gets its own ROS_DOMAIN_ID (`ros_domain`), and every ROS
-process runs loopback-only (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST), so tests never hear each
-other and never send traffic off this machine.
+The ROS fixtures (ros_domain, ros_node, graph, mock_driver, sim_driver, ros_artifacts) come from
+the project's own pytest plugin, skillgen_ros.testing (docs/testing.md); the suite loads it
+explicitly below, which is harmless where the installed `pytest11` entry point has already
+registered it under the same name. Every test that starts a ROS context gets its own
+ROS_DOMAIN_ID, and every ROS process runs loopback-only (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST),
+so tests never hear each other and never send traffic off this machine.
+
+The helpers below predate the plugin and stay for the tests that build their graphs by hand.
 """
 from __future__ import annotations
 
 import contextlib
-import itertools
 import os
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import pytest
 
 from skillgen_ros import rosenv
 
+if "skillgen_ros.testing" not in sys.modules:  # not yet loaded by the entry point: mark it as pytest_plugins
+    pytest.register_assert_rewrite("skillgen_ros.testing")  # would, before it is imported here (no warning)
+from skillgen_ros.testing.domains import acquire_domain  # noqa: E402
+from skillgen_ros.testing.wait import wait_for  # noqa: E402,F401  (imported from here by tests)
+
+pytest_plugins = ["skillgen_ros.testing", "pytester"]
+
 REPO = Path(__file__).resolve().parents[1]
 VENV_BIN = Path(sys.prefix) / "bin"
 
-# Domain IDs 0..101 and 215..232 are valid for Fast DDS on one host; spread workers apart.
-# SKILLGEN_TEST_DOMAIN_BASE pins a run to its own block of 10 IDs (two suites on one machine).
-_PINNED = os.environ.get("SKILLGEN_TEST_DOMAIN_BASE")
-_BASE = int(_PINNED) if _PINNED else 10 + (os.getpid() % 8) * 10
-_ids = itertools.count()
+_module_leases: list = []
 
 
 def next_domain_id() -> int:
-    if _PINNED:
-        return _BASE + next(_ids) % 10
-    return 1 + (_BASE + next(_ids)) % 100
+    """A domain ID held (lock file, skillgen_ros.testing.domains) until the calling test module
+    ends: for module-scoped graphs. SKILLGEN_TEST_DOMAIN_BASE pins the pool to ten IDs."""
+    lease = acquire_domain()
+    _module_leases.append(lease)
+    return lease.id
 
 
-@pytest.fixture
-def ros_domain(monkeypatch) -> int:
-    """A fresh ROS_DOMAIN_ID for this test, set in os.environ for in-process rclpy and children."""
-    dom = next_domain_id()
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(dom))
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    return dom
+@pytest.fixture(scope="module", autouse=True)
+def _release_module_domains():
+    """Frees next_domain_id()'s leases after the module's own fixtures (set up later) stopped."""
+    yield
+    while _module_leases:
+        _module_leases.pop().release()
 
 
 def node_env(domain: int, **extra) -> dict:
@@ -96,16 +103,6 @@ def start_node(ros_domain):
         p.stop()
 
 
-def wait_for(predicate, timeout: float = 10.0, period: float = 0.05) -> bool:
-    """Poll `predicate` until true or timeout; returns its last truthiness."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(period)
-    return bool(predicate())
-
-
 @contextlib.contextmanager
 def client_node(domain: int, name: str, executor_cls=None, spin: bool = False):
     """(node, executor) in a context of their own on `domain`; the executor (single-threaded by
@@ -130,10 +127,3 @@ def client_node(domain: int, name: str, executor_cls=None, spin: bool = False):
             node.destroy_node()
     finally:
         rclpy.shutdown(context=ctx)
-
-
-@pytest.fixture
-def ros_node(ros_domain, request):
-    """An rclpy node in this process, on the test's domain, spun in a background thread."""
-    with client_node(ros_domain, f"{request.module.__name__.split('.')[-1]}_node", spin=True) as (node, _):
-        yield node

@@ -1,5 +1,8 @@
 """Interface conformance of sim_driver and mock_driver: the same topics, types, services, actions,
-the same answers to bad input, and the driver keeps running with the robot where it was."""
+the same answers to bad input, and the driver keeps running with the robot where it was.
+
+The drivers come from the skillgen_ros.testing fixtures (mock_driver, sim_driver), as a user's
+tests would start them; the checks talk to them through this file's own Client."""
 from __future__ import annotations
 
 import subprocess
@@ -17,7 +20,7 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
-from conftest import REPO, wait_for
+from conftest import REPO
 from geometry_msgs.msg import Point, Pose as PoseMsg, PoseStamped, Quaternion, WrenchStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
@@ -141,8 +144,9 @@ def _graph(client):
 
 
 @pytest.mark.parametrize("exe", ["mock_driver", "sim_driver"])
-def test_driver_interface_and_bad_input(exe, start_node, client):
-    proc = start_node(exe, params=str(REPO / "params" / f"{exe}.yaml"))
+def test_driver_interface_and_bad_input(exe, request, client):
+    driver = request.getfixturevalue(exe)  # params/<exe>.yaml, ready: its services and actions answer
+    assert driver.name == f"/{exe}" and set(driver.topics.values()) <= set(EXPECTED_TOPICS)
     # --- conformance: names and types
     assert client.spin_until(lambda: all(t in _graph(client)[0] for t in EXPECTED_TOPICS)
                              and all(s in _graph(client)[1] for s in EXPECTED_SERVICES)
@@ -213,14 +217,13 @@ def test_driver_interface_and_bad_input(exe, start_node, client):
     assert client.spin_until(lambda: np.max(np.abs(client.q() - q_goal)) < 0.02)
     g = client.send_goal(client.grip, Gripper.Goal(position=0.04, max_effort=20.0))
     assert abs(g.width - 0.04) < 0.005 and g.reached_goal
-    assert proc.proc.poll() is None, "driver died"
+    assert driver.process.alive, "driver died"
 
 
-def test_mock_driver_starts_without_pybullet(start_node, ros_domain):
+def test_mock_driver_starts_without_pybullet(mock_driver):
     """The mock comes up and never imports pybullet. How fast it starts (goal: under 1 s) is measured
     in bench/sim_driver (`mock_driver_startup`), not here: a timed test fails on a loaded machine."""
-    node = start_node("mock_driver", params=str(REPO / "params" / "mock_driver.yaml"))
-    assert wait_for(lambda: "mock_driver up" in node.output(), 20.0), "mock_driver did not come up within 20 s"
+    assert "mock_driver up" in mock_driver.output()
     code = ("import sys; from skillgen_ros.nodes import mock_driver, driver_base; from skillgen_ros.core.sim import mock;"
             "mock.MockWorld().reset('Square', 'D0', 0); print('pybullet' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
@@ -231,12 +234,11 @@ def _stamp(t) -> float:
     return t.sec + t.nanosec * 1e-9
 
 
-def test_capture_cameras_and_live_camera_rate(start_node, client):
+@pytest.mark.mock_driver(camera_hz=0.0, lockstep_timeout_s=30.0)
+def test_capture_cameras_and_live_camera_rate(mock_driver, client):
     """camera_hz 0: frames only on reset and on capture_cameras (stamped as the answer says);
     camera_hz may be raised and lowered at run time; bad or read-only parameter changes are refused
     with a reason; a driver without cameras answers NO_CAMERAS. The driver keeps running."""
-    proc = start_node("mock_driver", "--ros-args", "--params-file", str(REPO / "params" / "mock_driver.yaml"),
-                      "-p", "camera_hz:=0.0", "-p", "lockstep_timeout_s:=30.0")
     clouds = []
     client.node.create_subscription(PointCloud2, "camera/front/points", clouds.append, qos_profile_sensor_data)
     capture = client.node.create_client(CaptureCameras, "capture_cameras")
@@ -271,12 +273,11 @@ def test_capture_cameras_and_live_camera_rate(start_node, client):
     ro = set_param("control_hz", 50.0)
     assert not ro.successful and "read-only" in ro.reason
     assert set_param("camera_hz", 0.0).successful
-    assert proc.proc.poll() is None, "driver died"
+    assert mock_driver.process.alive, "driver died"
 
 
-def test_capture_without_cameras_says_so(start_node, client):
-    start_node("mock_driver", "--ros-args", "--params-file", str(REPO / "params" / "mock_driver.yaml"),
-               "-p", "cameras:=['']")
+@pytest.mark.mock_driver(cameras=[""])
+def test_capture_without_cameras_says_so(mock_driver, client):
     capture = client.node.create_client(CaptureCameras, "capture_cameras")
     assert capture.wait_for_service(timeout_sec=20.0)
     r = client.call(capture, CaptureCameras.Request())

@@ -7,16 +7,16 @@ from conftest import wait_for
 
 
 @pytest.fixture
-def env(start_node, ros_node):
+def env(sim_driver, ros_node):
     from skillgen_ros.nodes.datagen import TIMEOUTS
     from skillgen_ros.nodes.graph_env import RosGraphEnv
 
-    start_node("sim_driver", "--ros-args", "-p", "camera_hz:=0.0", "-p", "cameras:=['']")
     e = RosGraphEnv(ros_node, TIMEOUTS)
     assert wait_for(lambda: e.reset_cli.service_is_ready(), 30.0)
     return e
 
 
+@pytest.mark.sim_driver(camera_hz=0.0, cameras=[""])
 def test_observations_carry_the_periods_wrench(env):
     from skillgen_ros.core.geometry import Pose
 

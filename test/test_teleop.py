@@ -4,6 +4,7 @@ from __future__ import annotations
 import os
 import pty
 import subprocess
+import termios
 import threading
 import time
 
@@ -53,7 +54,7 @@ class _Watcher:
         from geometry_msgs.msg import PoseStamped
         from rclpy.executors import SingleThreadedExecutor
 
-        from skillgen_interfaces.msg import GripperState
+        from skillgen_interfaces.msg import GripperState, OscTarget
 
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx)
@@ -62,6 +63,8 @@ class _Watcher:
         self.grip = None
         self.node.create_subscription(PoseStamped, "ee_pose", self._ee, 10)
         self.node.create_subscription(GripperState, "gripper_state", self._grip, 10)
+        self.targets = 0  # teleop's osc_target messages: it spins and holds the measured pose
+        self.node.create_subscription(OscTarget, "osc_target", self._target, 10)
         self.ex = SingleThreadedExecutor(context=self.ctx)
         self.ex.add_node(self.node)
         self.th = threading.Thread(target=self.ex.spin, daemon=True)
@@ -69,6 +72,9 @@ class _Watcher:
 
     def _ee(self, m):
         self.ee = np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z])
+
+    def _target(self, _m):
+        self.targets += 1
 
     def _grip(self, m):
         self.grip = (float(m.command), float(m.width))
@@ -80,12 +86,13 @@ class _Watcher:
 
 
 @pytest.fixture(params=["mock_driver", "sim_driver"])
-def driver(request, start_node):
-    exe = request.param
-    return start_node(exe, "--ros-args", "--params-file", str(REPO / f"params/{exe}.yaml"),
-                      "-p", "initial_task:=Square", "-p", "publish_points:=false")
+def driver(request):
+    """The plugin's mock_driver / sim_driver fixture, ready, in the Square scene (markers below)."""
+    return request.getfixturevalue(request.param)
 
 
+@pytest.mark.mock_driver(initial_task="Square", publish_points=False)
+@pytest.mark.sim_driver(task="Square", publish_points=False)
 def test_keys_move_the_ee_and_toggle_the_gripper(ros_domain, driver):
     w = _Watcher()
     master, slave = pty.openpty()
@@ -95,7 +102,10 @@ def test_keys_move_the_ee_and_toggle_the_gripper(ros_domain, driver):
     os.close(slave)
     try:
         assert wait_for(lambda: w.ee is not None and w.grip is not None, 20), "no ee_pose/gripper_state from driver"
-        time.sleep(1.0)  # teleop has subscribed and holds the current pose
+        # teleop is ready once it publishes targets (it has the EE) and has put its terminal in cbreak
+        # mode (master and slave share the termios): keys typed before then wait for a newline
+        assert wait_for(lambda: w.targets > 0 and not termios.tcgetattr(master)[3] & termios.ICANON, 60), \
+            "teleop did not start"
 
         def press(key: str, axis: int, sign: float, n: int = 4):
             start = w.ee.copy()

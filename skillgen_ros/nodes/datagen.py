@@ -8,6 +8,7 @@ maps the action goal onto a RunRequest, streams feedback (attempts, successes, r
 record the session through the recorder's services.
 
 Parameters (params/datagen.yaml): demos_dir, output_root, collision_source, action_noise,
+observation_source (ground_truth: the sim's true object poses in obs/<id>_pose; estimate: a real robot),
 release.* (how the hand lets go before a planned motion: core/generation/release.py), driver_node and
 video_camera_hz (the driver's camera rate while an attempt is filmed), and the per-call timeouts
 (timeout_reset, timeout_perception, timeout_plan, timeout_execute, timeout_skill, timeout_state).
@@ -27,6 +28,7 @@ from skillgen_interfaces.action import Generate
 from skillgen_interfaces.msg import FailureCount
 from skillgen_interfaces.srv import PlanToPose, Recorder, RunAttempt
 from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
+from skillgen_ros.core.generation.episode import OBSERVATION_SOURCES
 from skillgen_ros.core.generation.release import ReleaseConfig
 from skillgen_ros.core.generation.session import RunRequest, run_generation, validate_request
 from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
@@ -46,6 +48,7 @@ class DatagenNode(Node):
         self.declare_parameter("output_root", "out")
         self.declare_parameter("collision_source", "scene")
         self.declare_parameter("action_noise", 0.05)
+        self.declare_parameter("observation_source", "ground_truth")
         for k, v in _RELEASE_PARAMS.items():
             self.declare_parameter(f"release.{k}", v)
         self.declare_parameter("driver_node", "sim_driver")
@@ -55,6 +58,10 @@ class DatagenNode(Node):
         src = str(self.get_parameter("collision_source").value)
         if src not in ("point_cloud", "scene"):
             raise ParameterError(f"collision_source must be point_cloud or scene, got {src!r}")
+        self._observation_source = str(self.get_parameter("observation_source").value)
+        if self._observation_source not in OBSERVATION_SOURCES:
+            raise ParameterError(f"observation_source must be one of {OBSERVATION_SOURCES}, "
+                                 f"got {self._observation_source!r}")
         self._release = self._release_config()
         timeouts = {k: float(self.get_parameter(f"timeout_{k}").value) for k in TIMEOUTS}
         if any(v <= 0 for v in timeouts.values()):
@@ -97,7 +104,7 @@ class DatagenNode(Node):
                           augment_translation=float(g.augment_translation or 0.08),
                           augment_rotation_deg=float(g.augment_rotation_deg or 80.0),
                           action_noise=float(self.get_parameter("action_noise").value),
-                          release=self._release,
+                          release=self._release, observation_source=self._observation_source,
                           selection=g.selection or "random", output_dir=out, source_demos=g.source_demos,
                           **_video_attempts(g), **_initiation_candidates(g))
 

@@ -10,9 +10,13 @@ estimate. Filming an attempt for the MP4 is graph_video.AttemptVideo's job.
 Observations come from `joint_states` (arm and finger joints; the EE pose is FK through
 pinocchio, within 1e-8 m of the driver's `ee_pose`) and the same period's `ee_wrench`,
 read on demand (nodes/latest.py) so that the driver's hundreds of periods a second in lockstep do
-not wake this node; object poses in observations are the latest estimates (never ground truth).
-Motion-planner steps are recorded from the planned trajectory sampled at the control rate
-(commanded states, FK through pinocchio); skill steps are the measured states skill_replay saw.
+not wake this node. Observations carry the state's stamp and the robot's belief of the object
+poses (latest estimates, a grasped object moved with the hand); the sim's true poses come from the
+driver's `state_history` (one call per motion, and one per attempt for the rest, by stamp:
+`true_object_poses`), never from a topic reader in the control loop. Motion-planner steps are the
+measured states of the driver's trajectory periods (state_history); a driver without that service
+(a real robot) gets the planned trajectory sampled at the control rate (commanded states, FK
+through pinocchio). Skill steps are the measured states skill_replay saw.
 Every call has a timeout; a node that does not answer becomes a failure with a reason
 (PERCEPTION_FAILED, PLAN_FAILED, SKILL_FAILED, TIMEOUT) instead of a hang.
 """
@@ -31,7 +35,8 @@ from std_msgs.msg import String
 
 from skillgen_interfaces.action import ReplaySkill
 from skillgen_interfaces.msg import OscTarget, SceneObject
-from skillgen_interfaces.srv import CaptureCameras, EstimatePoses, LoadDemos, PlanToPose, ResetScene, TaskSuccess
+from skillgen_interfaces.srv import (CaptureCameras, EstimatePoses, LoadDemos, PlanToPose, ResetScene, StateHistory,
+                                     TaskSuccess)
 from skillgen_ros.answered import first_answer
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
@@ -67,6 +72,7 @@ class RosGraphEnv:
         self.replay_ac = ActionClient(node, ReplaySkill, "replay_skill", callback_group=group)
         self.capture_cli = node.create_client(CaptureCameras, "capture_cameras", callback_group=group)
         self.load_demos_cli = node.create_client(LoadDemos, "skill_replay/load_demos", callback_group=group)
+        self.history_cli = node.create_client(StateHistory, "state_history", callback_group=group)
         self.video = AttemptVideo(node, driver_node, video_camera_hz, group)
         self._lock = threading.RLock()
         self.osc_pub = node.create_publisher(OscTarget, "osc_target", 10)
@@ -86,6 +92,7 @@ class RosGraphEnv:
         self._plan_seed: int | None = None
         self._plans = 0
         self._estimates: dict[str, Pose] = {}
+        self.last_estimate: tuple[int, dict] | None = None  # (cloud stamp ns, what perception returned)
         self._skill_object: str | None = None
         self.grasps = GraspTracker()
 
@@ -153,6 +160,7 @@ class RosGraphEnv:
             self.task_pub.publish(String(data=task))
             self._task_sent = task
         self._estimates = {}
+        self.last_estimate = None
         self.grasps.clear()
         if not self.wait_for_state(self.t["state"], after=count):
             raise GraphCallError("no joint_states from the driver after reset", reason="TIMEOUT")
@@ -176,11 +184,43 @@ class RosGraphEnv:
         with self._lock:
             q, f = self._q.copy(), self._fingers.copy()
         ee_pose = Pose.from_matrix(self.kin.fk(q))
+        return Observation(ee_pose=ee_pose, gripper=f, joint_positions=q, object_poses=self._belief(ee_pose.matrix()),
+                           ee_wrench=wrench, stamp_ns=None if joints is None else _ns(joints.header.stamp))
+
+    def _belief(self, T_W_E: np.ndarray) -> dict[str, Pose]:
+        """Where the robot believes the objects are: the latest estimates, a held object with the hand."""
         objects = dict(self._estimates)
         held = self.grasps.holding()
-        if held in objects:  # a held object moves with the hand (rigid attachment)
-            objects[held] = self.grasps.pose_now(held, ee_pose.matrix())
-        return Observation(ee_pose=ee_pose, gripper=f, joint_positions=q, object_poses=objects, ee_wrench=wrench)
+        if held in objects:  # rigid attachment
+            objects[held] = self.grasps.pose_now(held, T_W_E)
+        return objects
+
+    def _history(self, after_ns: int, until_ns: int = 0) -> dict:
+        """The driver's periods stamped in (after, until] (state_history) as arrays."""
+        req = StateHistory.Request(after=_time(after_ns), until=_time(until_ns))
+        resp = self._call(self.history_cli, req, self.t["state"], "state_history", "TIMEOUT")
+        if not resp.success:
+            raise SkillGenError(f"state_history: {resp.reason_code}: {resp.message}", reason=resp.reason_code)
+        n, k = len(resp.stamps), len(resp.object_ids)
+        return {"stamps": [_ns(t) for t in resp.stamps], "kinds": np.asarray(resp.kinds, int),
+                "q": np.asarray(resp.joint_positions, float).reshape(n, 7),
+                "fingers": np.asarray(resp.finger_positions, float).reshape(n, 2), "ids": list(resp.object_ids),
+                "poses": np.asarray(resp.object_poses, float).reshape(n, k, 7)}
+
+    def true_object_poses(self, stamps) -> dict[int, dict[str, np.ndarray]]:
+        """The sim's true object poses of the periods stamped `stamps` (ns), in one state_history call."""
+        h = self._history(min(stamps) - 1, max(stamps))
+        if not h["ids"]:
+            raise SkillGenError("the driver reports no object poses: no ground truth", reason="NO_GROUND_TRUTH")
+        table = {t: dict(zip(h["ids"], h["poses"][i])) for i, t in enumerate(h["stamps"])}
+        missing = [t for t in stamps if t not in table]
+        import json, os  # DEBUG
+        if missing and os.environ.get("FIDOBS_DEBUG"):
+            json.dump({"stamps": list(stamps), "hist": h["stamps"], "kinds": h["kinds"].tolist()}, open(os.environ["FIDOBS_DEBUG"], "w"))
+        if missing:
+            raise SkillGenError(f"state_history lacks {len(missing)} of the {len(stamps)} periods asked for (first: "
+                                f"{missing[0]} ns; it answered {len(table)} periods {min(table, default=0)}..{max(table, default=0)}; asked {sorted(stamps)[:3]}, missing at {[stamps.index(m) for m in missing]}, next {stamps[stamps.index(missing[0])+1:][:2]})", reason="TIMEOUT")
+        return table
 
     def load_demos(self, task: str) -> None:
         """Have skill_replay load the run's source demos before the first attempt (raises with its
@@ -253,9 +293,10 @@ class RosGraphEnv:
         held = self.grasps.holding()
         if resp.status != EstimatePoses.Response.OK and not resp.poses:
             raise SkillGenError(f"estimate_poses: {resp.status_name}: {resp.message}", reason="PERCEPTION_FAILED")
-        for p in resp.poses:
-            if p.id != held:  # the hand occludes a held object; the grasp tracker knows where it is
-                self._estimates[p.id] = convert.pose_from_msg(p.pose)
+        seen = {p.id: convert.pose_from_msg(p.pose) for p in resp.poses if p.id != held}
+        self._estimates.update(seen)  # the hand occludes a held object; the grasp tracker knows where it is
+        floor = self._cloud_floor
+        self.last_estimate = (None if floor is None else _ns(floor), seen)  # frames of that stamp (or newer)
         return dict(self._estimates)
 
     def current_ee_pose(self) -> Pose:
@@ -295,7 +336,10 @@ class RosGraphEnv:
         req.timeout = float(self.t["plan"])
         req.execute = True
         self._moved = True
-        req.start_positions = [float(v) for v in self.current_q()]
+        start = self._joints.latest()
+        self._take_joints(start)
+        with self._lock:
+            req.start_positions = [float(v) for v in self._q]
         req.objects = self._scene_for_planner()
         req.manipulated_object = self._skill_object or ""
         if self._plan_seed is not None:
@@ -304,18 +348,39 @@ class RosGraphEnv:
         resp = self._call(self.plan_cli, req, self.t["plan"] + self.t["execute"], "plan_to_pose", "PLAN_FAILED",
                           idempotent=False)  # it moves the robot
         status = resp.status_name or str(resp.status)
-        if resp.status != PlanToPose.Response.SUCCESS:
+        executed = resp.status in (PlanToPose.Response.SUCCESS, PlanToPose.Response.EXECUTION_FAILED)
+        if executed and start is not None and self.history_cli.service_is_ready():
+            obs = self._executed_periods(_ns(start.header.stamp))  # measured, as the in-process env records
+        elif resp.status == PlanToPose.Response.SUCCESS:
+            obs = self._planned_samples(resp.trajectory)
+        else:
             return status, []
-        _, times, pos, _ = convert.trajectory_from_msg(resp.trajectory)
-        obs = []
+        if obs:
+            obs[-1] = self.observe()  # the state where execution ended, with its wrench
+        return status, obs
+
+    def _executed_periods(self, after_ns: int) -> list[Observation]:
+        """One observation per trajectory period the driver ran after `after_ns` (state_history)."""
+        h = self._history(after_ns)
+        out = []
+        for i in np.flatnonzero(h["kinds"] == StateHistory.Response.TRAJECTORY):
+            T = self.kin.fk(h["q"][i])
+            out.append(Observation(ee_pose=Pose.from_matrix(T), gripper=h["fingers"][i], joint_positions=h["q"][i],
+                                   object_poses=self._belief(T), stamp_ns=h["stamps"][i],
+                                   true_object_poses=dict(zip(h["ids"], h["poses"][i])) if h["ids"] else None))
+        return out
+
+    def _planned_samples(self, trajectory) -> list[Observation]:
+        """A driver without state_history: the planned trajectory at the control rate (commanded)."""
+        _, times, pos, _ = convert.trajectory_from_msg(trajectory)
         fingers = self.observe().gripper
+        out = []
         for t in np.arange(self.dt, times[-1] + 1e-9, self.dt):
             q = np.array([np.interp(t, times, pos[:, j]) for j in range(pos.shape[1])])
-            obs.append(Observation(ee_pose=Pose.from_matrix(self.kin.fk(q)), gripper=fingers, joint_positions=q,
-                                   object_poses=dict(self._estimates)))
-        if obs:
-            obs[-1] = self.observe()  # the measured state where execution ended
-        return status, obs
+            T = self.kin.fk(q)
+            out.append(Observation(ee_pose=Pose.from_matrix(T), gripper=fingers, joint_positions=q,
+                                   object_poses=self._belief(T)))
+        return out
 
     def replay_skill(self, skill_index: int, demo_index: int, T_W_O: np.ndarray, sigma: float,
                      recovery: bool, seed: int):
@@ -338,14 +403,50 @@ class RosGraphEnv:
             "gripper_widths": np.asarray(r.gripper_widths, float).reshape(n),
             "recovery": np.asarray(r.recovery_steps, bool).reshape(n),
         }
+        if len(r.stamps) == n:
+            steps["stamps_ns"] = [_ns(t) for t in r.stamps]
+        steps["object_poses"] = self._beliefs_along(steps)
         self._track_grasp(steps)
         return steps, bool(r.success), r.reason, r.message
+
+    def _beliefs_along(self, steps) -> list[dict]:
+        """The belief before each skill step, as SimGenerationEnv tracks it while stepping: a held
+        object follows the hand until the command opens, then stays where it was let go; the
+        skill's object follows the hand from 5 periods after the command closed."""
+        ees = [Pose.from_array(e).matrix() for e in steps["ee_poses"]]
+        grip = steps["actions_abs"][:, 7]
+        tracker, estimates = GraspTracker(), dict(self._estimates)
+        held = self.grasps.holding()
+        if held is not None:
+            tracker.grasped(held, self.grasps.pose_now(held, np.eye(4)).matrix(), np.eye(4))
+        out, last, closing = [], (1.0 if held else -1.0), -1
+        for k, T in enumerate(ees):
+            b = dict(estimates)
+            h = tracker.holding()
+            if h is not None:
+                b[h] = tracker.pose_now(h, T)
+            out.append(b)
+            after = ees[k + 1] if k + 1 < len(ees) else T  # the state the command of step k leads to
+            if grip[k] > 0 >= last:
+                closing = 5
+            elif grip[k] <= 0 < last:
+                estimates.update(tracker.released(after))
+                closing = -1
+            last = grip[k]
+            if closing > 0:
+                closing -= 1
+                if closing == 0 and self._skill_object in estimates:
+                    tracker.grasped(self._skill_object, estimates[self._skill_object].matrix(), after)
+        return out
 
     def _track_grasp(self, steps) -> None:
         """After a skill: if the hand closed on the skill's object, remember it rigidly attached."""
         k = grasp_step(steps["actions_abs"][:, 7])
         obj = self._skill_object
         if k is None:
+            held = self.grasps.holding()
+            if held is not None:  # believed where the hand let go (the last step's belief), until perception looks again
+                self._estimates[held] = steps["object_poses"][-1][held] if steps["object_poses"] else self._estimates[held]
             self.grasps.released()
         elif obj in self._estimates and k < len(steps["ee_poses"]):
             k_settled = min(k + 5, len(steps["ee_poses"]) - 1)  # the fingers need a few periods to close
@@ -385,3 +486,13 @@ class RosGraphEnv:
     def collided(self) -> bool:
         return False  # the planner's EXECUTION_FAILED status carries execution problems
 
+
+
+def _ns(stamp) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def _time(ns: int):
+    from builtin_interfaces.msg import Time
+
+    return Time(sec=int(ns) // 1_000_000_000, nanosec=int(ns) % 1_000_000_000)

@@ -24,7 +24,8 @@ def make_env_args(task: str, variant: str, method: str, seed: int, config: Gener
                        "augment_translation": config.augmentation.translation,
                        "augment_rotation_deg": config.augmentation.rotation_deg,
                        "interpolation_steps": config.interpolation_steps, "fixed_steps": config.fixed_steps,
-                       "initiation_candidates": config.initiation_candidates},
+                       "initiation_candidates": config.initiation_candidates,
+                       "observation_source": config.observation_source},
     }
 
 

@@ -25,7 +25,7 @@ from ..skills.replay import plan_replay
 from ..skills.protocols import SkillLike, TaskLike
 from ..skills.segment import SourceDemo
 from ..skills.transform import matrix_to_array
-from .episode import Episode, EpisodeRecorder, Observation, StepLabel
+from .episode import OBSERVATION_SOURCES, Episode, EpisodeRecorder, Observation, StepLabel
 from .initiation import initiation_candidates
 from .outcome import GOAL_INFEASIBLE, FailureReason, motion_failure  # noqa: F401 (re-exported)
 from .release import Feedback, ReleaseConfig, release_targets
@@ -76,10 +76,13 @@ class GenerationConfig:
     # hold while the fingers open (settle), unjam fingers stopped short of open, follow a push by
     # an open finger, clear a finger still touching. ReleaseConfig().without_moves() = only the settle.
     release: ReleaseConfig = ReleaseConfig()
+    # what obs/<id>_pose records (episode.py): "ground_truth" (a sim: the true pose at every step) or
+    # "estimate" (a real robot: perception's estimates, a grasped object moved with the hand)
+    observation_source: str = "ground_truth"
 
     def __post_init__(self):
         if (self.action_noise < 0 or self.interpolation_steps < 0 or self.fixed_steps < 0 or self.max_steps < 1
-                or self.initiation_candidates < 1):
+                or self.initiation_candidates < 1 or self.observation_source not in OBSERVATION_SOURCES):
             raise InvalidInputError(f"invalid generation config {self}", reason="INVALID_PARAMETER")
 
 
@@ -116,7 +119,7 @@ class _Attempt:
         self.rng_aug = attempt_rng(seed, index, "augmentation")
         self.rng_fallback = attempt_rng(seed, index, "initiation")
         self.strategy = make_strategy(config.selection, **config.selection_params)
-        self.rec = EpisodeRecorder()
+        self.rec = EpisodeRecorder(config.observation_source)
         self.timings = {k: 0.0 for k in ("reset", "perception", "motion", "skill", "success")}
         self.t0 = time.perf_counter()
         self.obs: Observation | None = None
@@ -152,6 +155,12 @@ class _Attempt:
         self.env.reset(self.task.name, variant, seed)
         self.obs = self.env.observe()
         self._timed("reset", t)
+        try:  # a ground_truth dataset needs an env that knows the true poses: fail before anything moves
+            self.rec.require_ground_truth(self.obs, getattr(self.env, "true_object_poses", None))
+        except (SkillGenError, TimeoutError) as e:
+            if getattr(e, "reason", "") == "NO_GROUND_TRUTH":
+                raise
+            raise _Fail(FailureReason.TIMEOUT, f"true object poses after the reset: {e}") from e
 
     def estimate(self, skill: SkillLike) -> np.ndarray:
         t = time.perf_counter()
@@ -165,6 +174,8 @@ class _Attempt:
             raise _Fail(FailureReason.PERCEPTION_FAILED, f"no pose for skill {skill.index} object {skill.object_id!r}")
         if not self.obs.object_poses or not self.rec:  # observations carry the estimates from here on
             self.obs = self.env.observe()
+        stamp, seen = getattr(self.env, "last_estimate", None) or (self.obs.stamp_ns, poses)
+        self.rec.add_estimate(stamp, seen)  # what perception saw, apart from the recorded observations
         p = poses[skill.object_id]
         return p.matrix() if isinstance(p, Pose) else np.asarray(p, float)
 
@@ -295,9 +306,12 @@ class _Attempt:
         finally:
             self._timed("skill", t)
         objects = dict(self.obs.object_poses)
+        beliefs, stamps = steps.get("object_poses"), steps.get("stamps_ns")  # per step, when the env has them
         for k in range(len(steps["actions"])):
             obs = Observation(ee_pose=steps["ee_poses"][k], gripper=np.full(2, steps["gripper_widths"][k] / 2),
-                              joint_positions=steps["joint_positions"][k], object_poses=objects)
+                              joint_positions=steps["joint_positions"][k],
+                              object_poses=beliefs[k] if beliefs is not None else objects,
+                              stamp_ns=int(stamps[k]) if stamps is not None else None)
             a = steps["actions"][k]
             self.rec.add(obs, a, steps["actions_abs"][k][:7], float(steps["actions_abs"][k][7]),
                          StepLabel(False, skill.index, j, goal7, bool(steps["recovery"][k])))
@@ -389,8 +403,14 @@ def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: Ta
             reason, message = FailureReason.TASK_FAILED, "all skills ran but the task success check failed"
     except _Fail as f:
         reason, message = f.reason, str(f)
+    try:
+        a.rec.resolve_from(getattr(env, "true_object_poses", None))
+    except (SkillGenError, TimeoutError) as e:  # the steps cannot be recorded truthfully: keep none of them
+        reason, message = FailureReason.TIMEOUT, f"true object poses of the attempt's steps: {e}"
+        a.rec = EpisodeRecorder(config.observation_source)
     a.timings["total"] = time.perf_counter() - a.t0
     success = reason is FailureReason.OK
     return AttemptResult(index=index, method=method, success=success, reason=reason, message=message,
                          scene_seed=a.scene_seed,
                          source_demos=tuple(a.chosen), episode=a.rec.episode(success), timings=a.timings)
+

@@ -22,8 +22,12 @@ class GraspTracker:
     def grasped(self, object_id: str, T_W_O_before: np.ndarray, T_W_E_at_grasp: np.ndarray) -> None:
         self._in_hand = {object_id: invert(np.asarray(T_W_E_at_grasp, float)) @ np.asarray(T_W_O_before, float)}
 
-    def released(self) -> None:
+    def released(self, T_W_E_now: np.ndarray | None = None) -> dict[str, Pose]:
+        """Let go; returns where the held object was believed to be at that moment (none without a pose)."""
+        out = {} if T_W_E_now is None else {k: Pose.from_matrix(np.asarray(T_W_E_now, float) @ T)
+                                              for k, T in self._in_hand.items()}
         self._in_hand.clear()
+        return out
 
     def holding(self) -> str | None:
         return next(iter(self._in_hand), None)

@@ -45,13 +45,14 @@ class RunRequest:
     video_attempts: int = 4  # attempts captured into the MP4 (successes and failures)
     initiation_candidates: int = 6  # skillgen: initiation poses tried per skill (1 = the paper)
     release: ReleaseConfig = ReleaseConfig()  # how the hand lets go before a planned motion (release.py)
+    observation_source: str = "ground_truth"  # obs/<id>_pose: the sim's true poses, or "estimate" (a real robot)
 
     def config(self) -> GenerationConfig:
         return GenerationConfig(variant=self.variant, action_noise=self.action_noise, selection=self.selection,
                                 augment=self.augment,
                                 augmentation=AugmentationConfig(self.augment_translation, self.augment_rotation_deg),
                                 max_steps=self.max_steps, initiation_candidates=self.initiation_candidates,
-                                release=self.release)
+                                release=self.release, observation_source=self.observation_source)
 
 
 def validate_request(req: RunRequest, known_tasks: Sequence[str]) -> None:

@@ -192,7 +192,9 @@ class DriverNode(Node):
 
     def _on_target(self, msg: OscTarget) -> None:
         try:
-            target = validate_osc_target(*convert.pose_arrays_from_msg(msg.pose))
+            arrays = convert.pose_arrays_from_msg(msg.pose)
+            validate_osc_target(*arrays)  # rejects here; the world validates the message's own values again, so
+            target = Pose(*arrays)  # they are normalized once, bit for bit as an in-process world.step does
             grip = validate_gripper(msg.gripper)
         except SkillGenError as e:
             return self._report(e)

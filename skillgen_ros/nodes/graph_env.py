@@ -214,12 +214,9 @@ class RosGraphEnv:
             raise SkillGenError("the driver reports no object poses: no ground truth", reason="NO_GROUND_TRUTH")
         table = {t: dict(zip(h["ids"], h["poses"][i])) for i, t in enumerate(h["stamps"])}
         missing = [t for t in stamps if t not in table]
-        import json, os  # DEBUG
-        if missing and os.environ.get("FIDOBS_DEBUG"):
-            json.dump({"stamps": list(stamps), "hist": h["stamps"], "kinds": h["kinds"].tolist()}, open(os.environ["FIDOBS_DEBUG"], "w"))
         if missing:
-            raise SkillGenError(f"state_history lacks {len(missing)} of the {len(stamps)} periods asked for (first: "
-                                f"{missing[0]} ns; it answered {len(table)} periods {min(table, default=0)}..{max(table, default=0)}; asked {sorted(stamps)[:3]}, missing at {[stamps.index(m) for m in missing]}, next {stamps[stamps.index(missing[0])+1:][:2]})", reason="TIMEOUT")
+            raise SkillGenError(f"state_history lacks {len(missing)} of the {len(stamps)} periods asked for "
+                                f"(first: {missing[0]} ns)", reason="TIMEOUT")
         return table
 
     def load_demos(self, task: str) -> None:
@@ -403,11 +400,23 @@ class RosGraphEnv:
             "gripper_widths": np.asarray(r.gripper_widths, float).reshape(n),
             "recovery": np.asarray(r.recovery_steps, bool).reshape(n),
         }
-        if len(r.stamps) == n:
-            steps["stamps_ns"] = [_ns(t) for t in r.stamps]
+        if n and len(r.stamps) == n and self.history_cli.service_is_ready():
+            self._measured(steps, [_ns(t) for t in r.stamps])
         steps["object_poses"] = self._beliefs_along(steps)
         self._track_grasp(steps)
         return steps, bool(r.success), r.reason, r.message
+
+    def _measured(self, steps, stamps: list[int]) -> None:
+        """The skill's periods from the driver's state_history: each finger's position and the
+        sim's true object poses per step (the result carries only the gripper width)."""
+        h = self._history(stamps[0] - 1, stamps[-1])
+        row = {t: i for i, t in enumerate(h["stamps"])}
+        if any(t not in row for t in stamps):
+            raise GraphCallError("state_history lacks periods of the skill", reason="TIMEOUT")
+        idx = [row[t] for t in stamps]
+        steps["stamps_ns"], steps["fingers"] = stamps, h["fingers"][idx]
+        if h["ids"]:
+            steps["true_object_poses"] = [dict(zip(h["ids"], h["poses"][i])) for i in idx]
 
     def _beliefs_along(self, steps) -> list[dict]:
         """The belief before each skill step, as SimGenerationEnv tracks it while stepping: a held

@@ -134,11 +134,11 @@ class _Attempt:
         if self.cfg.time_limit_s is not None and time.perf_counter() - self.t0 > self.cfg.time_limit_s:
             raise _Fail(FailureReason.TIMEOUT, f"attempt exceeded {self.cfg.time_limit_s} s")
 
-    def _step(self, target: np.ndarray, gripper: float, sigma: float, label: StepLabel) -> None:
+    def _step(self, target: np.ndarray, gripper: float, sigma: float, label: StepLabel, rng=None) -> None:
         """One OSC step toward `target`: normalized delta action (+ noise), executed and recorded."""
         self._budget()
         current = self.obs.ee_matrix()
-        action, commanded = make_action(target, current, gripper, sigma, self.rng_noise, self.cfg.scale)
+        action, commanded = make_action(target, current, gripper, sigma, rng or self.rng_noise, self.cfg.scale)
         try:
             nxt = self.env.step(Pose.from_matrix(commanded), float(gripper))
         except (SkillGenError, TimeoutError) as e:
@@ -283,11 +283,12 @@ class _Attempt:
         if hasattr(self.env, "replay_skill"):
             return self.remote_skill(skill, j, T_W_O, goal7)
         cmds = plan_replay(seg, T_W_O, self.obs.ee_matrix(), self.cfg.augment, self.cfg.augmentation)
+        rng = np.random.default_rng(int(self.rng_noise.integers(2**63 - 1)))  # drawn as remote_skill seeds skill_replay
         t = time.perf_counter()
         try:
             for T, g, rec in zip(cmds.targets, cmds.gripper, cmds.recovery):
                 sigma = 0.0 if rec else self.cfg.action_noise  # recovery poses are planned, not demonstrated
-                self._step(T, float(g), sigma, StepLabel(False, skill.index, j, goal7, bool(rec)))
+                self._step(T, float(g), sigma, StepLabel(False, skill.index, j, goal7, bool(rec)), rng)
         finally:
             self._timed("skill", t)
 
@@ -306,11 +307,13 @@ class _Attempt:
         finally:
             self._timed("skill", t)
         objects = dict(self.obs.object_poses)
-        beliefs, stamps = steps.get("object_poses"), steps.get("stamps_ns")  # per step, when the env has them
-        for k in range(len(steps["actions"])):
-            obs = Observation(ee_pose=steps["ee_poses"][k], gripper=np.full(2, steps["gripper_widths"][k] / 2),
+        beliefs, stamps, truth = (steps.get(k) for k in ("object_poses", "stamps_ns", "true_object_poses"))
+        fingers = steps.get("fingers", np.repeat(np.asarray(steps["gripper_widths"])[:, None] / 2, 2, axis=1))
+        for k in range(len(steps["actions"])):  # per step what the env has: stamps, the sim's truth, beliefs
+            obs = Observation(ee_pose=steps["ee_poses"][k], gripper=fingers[k],
                               joint_positions=steps["joint_positions"][k],
                               object_poses=beliefs[k] if beliefs is not None else objects,
+                              true_object_poses=truth[k] if truth is not None else None,
                               stamp_ns=int(stamps[k]) if stamps is not None else None)
             a = steps["actions"][k]
             self.rec.add(obs, a, steps["actions_abs"][k][:7], float(steps["actions_abs"][k][7]),

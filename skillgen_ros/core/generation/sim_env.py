@@ -134,12 +134,13 @@ class SimGenerationEnv:
         if self.cfg.images:
             images = {"front": _resize(w.render("front").rgb, self.cfg.image_size),
                       "wrist": w.render("wrist").rgb}
-        ee = w.ee_pose()
+        q = w.joint_positions()
+        ee = Pose.from_matrix(self.kin.fk(q))  # FK of the joints, as the graph's nodes see the EE (1e-8 m from pybullet's)
         objects = dict(self._estimates)
         held = self.grasps.holding()
         if held in objects:  # a held object moves with the hand (rigid attachment)
             objects[held] = self.grasps.pose_now(held, ee.matrix())
-        return Observation(ee_pose=ee, gripper=w.finger_positions(), joint_positions=w.joint_positions(),
+        return Observation(ee_pose=ee, gripper=w.finger_positions(), joint_positions=q,
                            object_poses=objects, images=images, ee_wrench=w.ee_wrench(),
                            true_object_poses=w.object_poses(), stamp_ns=_ns(w.time))
 

@@ -163,3 +163,29 @@ def test_malformed_estimates_are_rejected_naming_the_field(tmp_path, corrupt, wh
     with pytest.raises(DatasetError) as e:
         validate_dataset(str(path))
     assert why in str(e.value) and "demo_0" in str(e.value)
+
+
+def test_beliefs_along_a_skill_follow_the_hand_and_stay_where_released():
+    """The graph's belief for estimate datasets (grasp.beliefs_along), as SimGenerationEnv tracks it."""
+    from skillgen_ros.core.generation.grasp import CLOSE_PERIODS, beliefs_along
+    from skillgen_ros.core.geometry import Pose
+
+    def ee(x):
+        T = np.eye(4)
+        T[0, 3] = x
+        return T
+
+    # place: the peg-side object is held 5 cm below the hand, the hand moves +x, opens at step 3
+    T_E_O = np.eye(4)
+    T_E_O[2, 3] = -0.05
+    out = beliefs_along({"cube": Pose(np.zeros(3), [0, 0, 0, 1])}, ("cube", T_E_O), None,
+                        [ee(0.1 * k) for k in range(6)], [1, 1, 1, -1, -1, -1])
+    xs = [b["cube"].position[0] for b in out]
+    np.testing.assert_allclose(xs, [0.0, 0.1, 0.2, 0.3, 0.4, 0.4])  # follows until the open command took effect
+    assert out[-1]["cube"].position[2] == pytest.approx(-0.05)
+    # grasp: the skill's object stays at its estimate until CLOSE_PERIODS after the close command
+    n = CLOSE_PERIODS + 4
+    out = beliefs_along({"cube": Pose([0.0, 0, 0], [0, 0, 0, 1])}, None, "cube", [ee(0.01 * k) for k in range(n)],
+                        [-1] + [1] * (n - 1))
+    xs = np.array([b["cube"].position[0] for b in out])
+    assert np.all(xs[:CLOSE_PERIODS + 1] == 0.0) and np.all(np.diff(xs[CLOSE_PERIODS + 1:]) > 0.009)

@@ -40,13 +40,14 @@ from skillgen_interfaces.srv import (CaptureCameras, EstimatePoses, LoadDemos, P
 from skillgen_ros.answered import first_answer
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
-from skillgen_ros.core.generation.grasp import GraspTracker, grasp_step
+from skillgen_ros.core.generation.grasp import CLOSE_PERIODS, GraspTracker, beliefs_along, grasp_step
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
 from skillgen_ros.nodes import convert
 from skillgen_ros.nodes.graph_video import AttemptVideo
 from skillgen_ros.nodes.latest import LatestMessage, wait_future
+from skillgen_ros.nodes.state_history import DriverHistory, ns
 
 
 class GraphCallError(SkillGenError):
@@ -72,7 +73,8 @@ class RosGraphEnv:
         self.replay_ac = ActionClient(node, ReplaySkill, "replay_skill", callback_group=group)
         self.capture_cli = node.create_client(CaptureCameras, "capture_cameras", callback_group=group)
         self.load_demos_cli = node.create_client(LoadDemos, "skill_replay/load_demos", callback_group=group)
-        self.history_cli = node.create_client(StateHistory, "state_history", callback_group=group)
+        self.history = DriverHistory(node.create_client(StateHistory, "state_history", callback_group=group),
+                                     lambda cli, req: self._call(cli, req, self.t["state"], "state_history", "TIMEOUT"))
         self.video = AttemptVideo(node, driver_node, video_camera_hz, group)
         self._lock = threading.RLock()
         self.osc_pub = node.create_publisher(OscTarget, "osc_target", 10)
@@ -185,7 +187,7 @@ class RosGraphEnv:
             q, f = self._q.copy(), self._fingers.copy()
         ee_pose = Pose.from_matrix(self.kin.fk(q))
         return Observation(ee_pose=ee_pose, gripper=f, joint_positions=q, object_poses=self._belief(ee_pose.matrix()),
-                           ee_wrench=wrench, stamp_ns=None if joints is None else _ns(joints.header.stamp))
+                           ee_wrench=wrench, stamp_ns=None if joints is None else ns(joints.header.stamp))
 
     def _belief(self, T_W_E: np.ndarray) -> dict[str, Pose]:
         """Where the robot believes the objects are: the latest estimates, a held object with the hand."""
@@ -195,29 +197,9 @@ class RosGraphEnv:
             objects[held] = self.grasps.pose_now(held, T_W_E)
         return objects
 
-    def _history(self, after_ns: int, until_ns: int = 0) -> dict:
-        """The driver's periods stamped in (after, until] (state_history) as arrays."""
-        req = StateHistory.Request(after=_time(after_ns), until=_time(until_ns))
-        resp = self._call(self.history_cli, req, self.t["state"], "state_history", "TIMEOUT")
-        if not resp.success:
-            raise SkillGenError(f"state_history: {resp.reason_code}: {resp.message}", reason=resp.reason_code)
-        n, k = len(resp.stamps), len(resp.object_ids)
-        return {"stamps": [_ns(t) for t in resp.stamps], "kinds": np.asarray(resp.kinds, int),
-                "q": np.asarray(resp.joint_positions, float).reshape(n, 7),
-                "fingers": np.asarray(resp.finger_positions, float).reshape(n, 2), "ids": list(resp.object_ids),
-                "poses": np.asarray(resp.object_poses, float).reshape(n, k, 7)}
-
     def true_object_poses(self, stamps) -> dict[int, dict[str, np.ndarray]]:
         """The sim's true object poses of the periods stamped `stamps` (ns), in one state_history call."""
-        h = self._history(min(stamps) - 1, max(stamps))
-        if not h["ids"]:
-            raise SkillGenError("the driver reports no object poses: no ground truth", reason="NO_GROUND_TRUTH")
-        table = {t: dict(zip(h["ids"], h["poses"][i])) for i, t in enumerate(h["stamps"])}
-        missing = [t for t in stamps if t not in table]
-        if missing:
-            raise SkillGenError(f"state_history lacks {len(missing)} of the {len(stamps)} periods asked for "
-                                f"(first: {missing[0]} ns)", reason="TIMEOUT")
-        return table
+        return self.history.true_object_poses(stamps)
 
     def load_demos(self, task: str) -> None:
         """Have skill_replay load the run's source demos before the first attempt (raises with its
@@ -293,7 +275,7 @@ class RosGraphEnv:
         seen = {p.id: convert.pose_from_msg(p.pose) for p in resp.poses if p.id != held}
         self._estimates.update(seen)  # the hand occludes a held object; the grasp tracker knows where it is
         floor = self._cloud_floor
-        self.last_estimate = (None if floor is None else _ns(floor), seen)  # frames of that stamp (or newer)
+        self.last_estimate = (None if floor is None else ns(floor), seen)  # frames of that stamp (or newer)
         return dict(self._estimates)
 
     def current_ee_pose(self) -> Pose:
@@ -346,8 +328,8 @@ class RosGraphEnv:
                           idempotent=False)  # it moves the robot
         status = resp.status_name or str(resp.status)
         executed = resp.status in (PlanToPose.Response.SUCCESS, PlanToPose.Response.EXECUTION_FAILED)
-        if executed and start is not None and self.history_cli.service_is_ready():
-            obs = self._executed_periods(_ns(start.header.stamp))  # measured, as the in-process env records
+        if executed and start is not None and self.history.ready():
+            obs = self._executed_periods(ns(start.header.stamp))  # measured, as the in-process env records
         elif resp.status == PlanToPose.Response.SUCCESS:
             obs = self._planned_samples(resp.trajectory)
         else:
@@ -358,14 +340,9 @@ class RosGraphEnv:
 
     def _executed_periods(self, after_ns: int) -> list[Observation]:
         """One observation per trajectory period the driver ran after `after_ns` (state_history)."""
-        h = self._history(after_ns)
-        out = []
-        for i in np.flatnonzero(h["kinds"] == StateHistory.Response.TRAJECTORY):
-            T = self.kin.fk(h["q"][i])
-            out.append(Observation(ee_pose=Pose.from_matrix(T), gripper=h["fingers"][i], joint_positions=h["q"][i],
-                                   object_poses=self._belief(T), stamp_ns=h["stamps"][i],
-                                   true_object_poses=dict(zip(h["ids"], h["poses"][i])) if h["ids"] else None))
-        return out
+        return [Observation(ee_pose=Pose.from_matrix(T := self.kin.fk(q)), gripper=f, joint_positions=q,
+                            object_poses=self._belief(T), stamp_ns=t, true_object_poses=truth)
+                for t, q, f, truth in self.history.trajectory_periods(after_ns)]
 
     def _planned_samples(self, trajectory) -> list[Observation]:
         """A driver without state_history: the planned trajectory at the control rate (commanded)."""
@@ -400,53 +377,18 @@ class RosGraphEnv:
             "gripper_widths": np.asarray(r.gripper_widths, float).reshape(n),
             "recovery": np.asarray(r.recovery_steps, bool).reshape(n),
         }
-        if n and len(r.stamps) == n and self.history_cli.service_is_ready():
-            self._measured(steps, [_ns(t) for t in r.stamps])
+        if n and len(r.stamps) == n and self.history.ready():
+            steps.update(self.history.skill_periods([ns(t) for t in r.stamps]))
         steps["object_poses"] = self._beliefs_along(steps)
         self._track_grasp(steps)
         return steps, bool(r.success), r.reason, r.message
 
-    def _measured(self, steps, stamps: list[int]) -> None:
-        """The skill's periods from the driver's state_history: each finger's position and the
-        sim's true object poses per step (the result carries only the gripper width)."""
-        h = self._history(stamps[0] - 1, stamps[-1])
-        row = {t: i for i, t in enumerate(h["stamps"])}
-        if any(t not in row for t in stamps):
-            raise GraphCallError("state_history lacks periods of the skill", reason="TIMEOUT")
-        idx = [row[t] for t in stamps]
-        steps["stamps_ns"], steps["fingers"] = stamps, h["fingers"][idx]
-        if h["ids"]:
-            steps["true_object_poses"] = [dict(zip(h["ids"], h["poses"][i])) for i in idx]
-
     def _beliefs_along(self, steps) -> list[dict]:
-        """The belief before each skill step, as SimGenerationEnv tracks it while stepping: a held
-        object follows the hand until the command opens, then stays where it was let go; the
-        skill's object follows the hand from 5 periods after the command closed."""
-        ees = [Pose.from_array(e).matrix() for e in steps["ee_poses"]]
-        grip = steps["actions_abs"][:, 7]
-        tracker, estimates = GraspTracker(), dict(self._estimates)
+        """The belief before each skill step (grasp.beliefs_along), as SimGenerationEnv tracks it."""
         held = self.grasps.holding()
-        if held is not None:
-            tracker.grasped(held, self.grasps.pose_now(held, np.eye(4)).matrix(), np.eye(4))
-        out, last, closing = [], (1.0 if held else -1.0), -1
-        for k, T in enumerate(ees):
-            b = dict(estimates)
-            h = tracker.holding()
-            if h is not None:
-                b[h] = tracker.pose_now(h, T)
-            out.append(b)
-            after = ees[k + 1] if k + 1 < len(ees) else T  # the state the command of step k leads to
-            if grip[k] > 0 >= last:
-                closing = 5
-            elif grip[k] <= 0 < last:
-                estimates.update(tracker.released(after))
-                closing = -1
-            last = grip[k]
-            if closing > 0:
-                closing -= 1
-                if closing == 0 and self._skill_object in estimates:
-                    tracker.grasped(self._skill_object, estimates[self._skill_object].matrix(), after)
-        return out
+        return beliefs_along(self._estimates, None if held is None else (held, self.grasps.object_in_ee(held)),
+                             self._skill_object, [Pose.from_array(e).matrix() for e in steps["ee_poses"]],
+                             steps["actions_abs"][:, 7])
 
     def _track_grasp(self, steps) -> None:
         """After a skill: if the hand closed on the skill's object, remember it rigidly attached."""
@@ -458,7 +400,7 @@ class RosGraphEnv:
                 self._estimates[held] = steps["object_poses"][-1][held] if steps["object_poses"] else self._estimates[held]
             self.grasps.released()
         elif obj in self._estimates and k < len(steps["ee_poses"]):
-            k_settled = min(k + 5, len(steps["ee_poses"]) - 1)  # the fingers need a few periods to close
+            k_settled = min(k + CLOSE_PERIODS, len(steps["ee_poses"]) - 1)  # the fingers need a few periods to close
             self.grasps.grasped(obj, self._estimates[obj].matrix(), Pose.from_array(steps["ee_poses"][k_settled]).matrix())
 
     def _wait_action(self, send_future, timeout: float):
@@ -496,12 +438,3 @@ class RosGraphEnv:
         return False  # the planner's EXECUTION_FAILED status carries execution problems
 
 
-
-def _ns(stamp) -> int:
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
-
-
-def _time(ns: int):
-    from builtin_interfaces.msg import Time
-
-    return Time(sec=int(ns) // 1_000_000_000, nanosec=int(ns) % 1_000_000_000)

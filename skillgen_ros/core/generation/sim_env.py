@@ -25,7 +25,7 @@ from ..sim.camera import CameraConfig
 from ..sim.world import SimWorld
 from ..tasks.spec import ObjectSpec
 from .episode import Observation
-from .grasp import GraspTracker
+from .grasp import CLOSE_PERIODS, GraspTracker
 
 PERCEPTION_MODES = ("estimate", "ground_truth")
 COLLISION_SOURCES = ("scene", "cloud")
@@ -280,7 +280,7 @@ class SimGenerationEnv:
         """Rigid attachment from the command stream: a few periods after the hand closes on the
         skill's object, remember it in the EE frame (GraspTracker); opening releases it."""
         if gripper > 0 >= self._last_gripper:
-            self._closing = 5  # periods for the fingers to close
+            self._closing = CLOSE_PERIODS
         elif gripper <= 0 < self._last_gripper:  # believed where the hand let go, until perception looks again
             self._estimates.update(self.grasps.released(self.world.ee_pose().matrix()))
             self._closing = -1

@@ -321,7 +321,7 @@ class DriverNode(Node):
                 if until is None or row[0] <= until:
                     rows.append(row)
         rows.reverse()
-        if len({r[2] for r in rows}) > 1:
+        if any(r[4] == StateHistory.Response.RESET for r in rows[1:]):
             res.reason_code, res.message = "SCENE_CHANGED", "the periods span a reset_scene"
             return res
         res.stamps = [Time(sec=t // 1_000_000_000, nanosec=t % 1_000_000_000) for t, *_ in rows]

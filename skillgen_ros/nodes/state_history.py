@@ -59,6 +59,8 @@ class DriverHistory:
 
     def true_object_poses(self, stamps) -> dict[int, dict[str, np.ndarray]]:
         """stamp -> id -> (7,) the true poses of those periods; NO_GROUND_TRUTH where the driver has none."""
+        if not self.client.wait_for_service(timeout_sec=5.0):  # a real robot's driver has no such service
+            raise SkillGenError("the driver offers no state_history: no ground truth", reason="NO_GROUND_TRUTH")
         h, idx = self._rows(list(stamps))
         if not h["ids"]:
             raise SkillGenError("the driver reports no object poses: no ground truth", reason="NO_GROUND_TRUTH")

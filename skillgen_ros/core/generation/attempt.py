@@ -416,4 +416,3 @@ def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: Ta
     return AttemptResult(index=index, method=method, success=success, reason=reason, message=message,
                          scene_seed=a.scene_seed,
                          source_demos=tuple(a.chosen), episode=a.rec.episode(success), timings=a.timings)
-

@@ -223,7 +223,7 @@ def test_graph_records_the_true_object_poses_the_in_process_env_records(graph, t
     if g["success"]:
         c = held_object_errors({k[4:]: v for k, v in g.items() if k.startswith("obs/")}, g["actions_abs"], "square_nut")
         assert c["carried_steps"] > 20 and c["carry"] < 0.01, c
-        assert c["release_jump"] < 0.05 and c["release_drift_xy"] < 0.01, c
+        assert c["release_jump"] < 0.05 and c["release_drift_xy"] < 0.03, c  # it settles: cm; the bug: 0.3 m
 
     task = get_task("Square")
     env = SimGenerationEnv(SimEnvConfig(perception="estimate", video=False))

@@ -137,5 +137,5 @@ def test_recorded_object_poses_are_the_true_ones_and_follow_the_held_nut(square)
     assert err < 1e-12, err  # recorded vs the world's own poses at the observed state
     c = held_object_errors(ep.obs, ep.actions_abs, "square_nut")
     assert c["carried_steps"] > 20 and c["carry"] < 0.01, c
-    assert c["release_jump"] < 0.05 and c["release_drift_xy"] < 0.01, c
+    assert c["release_jump"] < 0.05 and c["release_drift_xy"] < 0.03, c  # it settles: cm; the bug: 0.3 m
     assert set(ep.estimates) >= {"step", "stamp", "square_nut_pose", "square_peg_pose"}

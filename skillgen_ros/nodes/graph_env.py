@@ -396,8 +396,8 @@ class RosGraphEnv:
         obj = self._skill_object
         if k is None:
             held = self.grasps.holding()
-            if held is not None:  # believed where the hand let go (the last step's belief), until perception looks again
-                self._estimates[held] = steps["object_poses"][-1][held] if steps["object_poses"] else self._estimates[held]
+            if held is not None and steps["object_poses"]:  # believed where the hand let go, until perception looks
+                self._estimates[held] = steps["object_poses"][-1][held]
             self.grasps.released()
         elif obj in self._estimates and k < len(steps["ee_poses"]):
             k_settled = min(k + CLOSE_PERIODS, len(steps["ee_poses"]) - 1)  # the fingers need a few periods to close

@@ -135,7 +135,7 @@ class SimGenerationEnv:
             images = {"front": _resize(w.render("front").rgb, self.cfg.image_size),
                       "wrist": w.render("wrist").rgb}
         q = w.joint_positions()
-        ee = Pose.from_matrix(self.kin.fk(q))  # FK of the joints, as the graph's nodes see the EE (1e-8 m from pybullet's)
+        ee = Pose.from_matrix(self.kin.fk(q))  # FK of the joints, as the graph sees the EE (1e-8 m from pybullet's)
         objects = dict(self._estimates)
         held = self.grasps.holding()
         if held in objects:  # a held object moves with the hand (rigid attachment)

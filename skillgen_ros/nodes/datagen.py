@@ -70,7 +70,8 @@ class DatagenNode(Node):
                                collision_source=PlanToPose.Request.SOURCE_POINT_CLOUD if src == "point_cloud"
                                else PlanToPose.Request.SOURCE_SCENE,
                                driver_node=str(self.get_parameter("driver_node").value),
-                               video_camera_hz=float(self.get_parameter("video_camera_hz").value))
+                               video_camera_hz=float(self.get_parameter("video_camera_hz").value),
+                               observation_source=self._observation_source)
         self._busy = threading.Lock()
         cb = ReentrantCallbackGroup()
         self.rec_start = self.create_client(Recorder, "recorder/start", callback_group=cb)

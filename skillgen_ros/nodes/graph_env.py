@@ -59,12 +59,14 @@ class RosGraphEnv:
 
     def __init__(self, node: Node, timeouts: dict, demos_dir: str = "", action_noise: float = 0.05,
                  collision_source: int = PlanToPose.Request.SOURCE_POINT_CLOUD, control_hz: float = 20.0,
-                 driver_node: str = "sim_driver", video_camera_hz: float = 10.0):
+                 driver_node: str = "sim_driver", video_camera_hz: float = 10.0,
+                 observation_source: str = "ground_truth"):
         self.node = node
         self.t = dict(timeouts)
         self.demos_dir = demos_dir
         self.collision_source = collision_source
         self.dt = 1.0 / control_hz
+        self.observation_source = observation_source  # "estimate": skill steps carry the belief (beliefs_along)
         group = ReentrantCallbackGroup()
         self.reset_cli = node.create_client(ResetScene, "reset_scene", callback_group=group)
         self.success_cli = node.create_client(TaskSuccess, "task_success", callback_group=group)
@@ -379,7 +381,8 @@ class RosGraphEnv:
         }
         if n and len(r.stamps) == n and self.history.ready():
             steps.update(self.history.skill_periods([ns(t) for t in r.stamps]))
-        steps["object_poses"] = self._beliefs_along(steps)
+        if self.observation_source == "estimate":  # the belief is what such a dataset records
+            steps["object_poses"] = self._beliefs_along(steps)
         self._track_grasp(steps)
         return steps, bool(r.success), r.reason, r.message
 
@@ -395,10 +398,10 @@ class RosGraphEnv:
         k = grasp_step(steps["actions_abs"][:, 7])
         obj = self._skill_object
         if k is None:
-            held = self.grasps.holding()
-            if held is not None and steps["object_poses"]:  # believed where the hand let go, until perception looks
-                self._estimates[held] = steps["object_poses"][-1][held]
-            self.grasps.released()
+            opened, at = np.flatnonzero(steps["actions_abs"][:, 7] <= 0), None
+            if len(opened):  # the state the opening command led to
+                at = Pose.from_array(steps["ee_poses"][min(opened[0] + 1, len(steps["ee_poses"]) - 1)]).matrix()
+            self._estimates.update(self.grasps.released(at))  # believed there until perception looks again
         elif obj in self._estimates and k < len(steps["ee_poses"]):
             k_settled = min(k + CLOSE_PERIODS, len(steps["ee_poses"]) - 1)  # the fingers need a few periods to close
             self.grasps.grasped(obj, self._estimates[obj].matrix(), Pose.from_array(steps["ee_poses"][k_settled]).matrix())

@@ -65,6 +65,7 @@ class FakeWorld:
         self.collide = collide
         self.perception_fails = perception_fails
         self.images = images
+        self.no_truth = False  # True: a robot without ground truth (observation_source estimate only)
         self.calls: list[str] = []
 
     # scene
@@ -87,7 +88,8 @@ class FakeWorld:
     def observe(self) -> Observation:
         imgs = {"front": np.full((8, 8, 3), int(self.ee[0, 3] * 100) % 255, np.uint8)} if self.images else {}
         return Observation(self.ee.copy(), np.array([0.04, 0.04]) if self.grip < 0 else np.array([0.02, 0.02]),
-                           self.q.copy(), {k: v.copy() for k, v in self.objects.items()}, imgs)
+                           self.q.copy(), {k: v.copy() for k, v in self.objects.items()}, imgs,
+                           true_object_poses=None if self.no_truth else {k: v.copy() for k, v in self.objects.items()})
 
     def estimate_poses(self):
         self.calls.append("estimate")

@@ -282,3 +282,45 @@ def test_capture_without_cameras_says_so(mock_driver, client):
     assert capture.wait_for_service(timeout_sec=20.0)
     r = client.call(capture, CaptureCameras.Request())
     assert not r.success and r.reason_code == "NO_CAMERAS"
+
+
+def test_state_history_answers_each_published_period(start_node, client):
+    """state_history: every published state in order, stamped as its joint_states, with what drove
+    it and the world's object poses; an expired start or a span over a reset answers with a reason."""
+    from skillgen_interfaces.srv import StateHistory
+
+    proc = start_node("mock_driver", "--ros-args", "--params-file", str(REPO / "params" / "mock_driver.yaml"),
+                      "-p", "lockstep_timeout_s:=30.0", "-p", "history_periods:=8")
+    hist = client.node.create_client(StateHistory, "state_history")
+    assert hist.wait_for_service(timeout_sec=20.0)
+    seen = []
+    client.node.create_subscription(JointState, "joint_states", seen.append, 100)
+    assert client.reset("Square", "D0", 0).success
+    assert client.spin_until(lambda: len(seen) >= 1)
+    reset_stamp = seen[-1].header.stamp
+    n0 = len(seen)
+    for k in range(3):
+        client.target([0.5, 0.0, 0.3])
+        assert client.spin_until(lambda: len(seen) >= n0 + k + 1)
+    from builtin_interfaces.msg import Time
+
+    before = Time(sec=reset_stamp.sec, nanosec=reset_stamp.nanosec - 1) if reset_stamp.nanosec else \
+        Time(sec=reset_stamp.sec - 1, nanosec=999_999_999)
+    r = client.call(hist, StateHistory.Request(after=before))
+    assert r.success, r.message
+    assert [_stamp(t) for t in r.stamps] == [_stamp(m.header.stamp) for m in seen[-4:]]
+    assert list(r.kinds) == [StateHistory.Response.RESET] + [StateHistory.Response.OSC_TARGET] * 3
+    np.testing.assert_array_equal(np.reshape(r.joint_positions, (4, 7)), [m.position[:7] for m in seen[-4:]])
+    assert set(r.object_ids) == {"square_nut", "square_peg"} and len(r.object_poses) == 4 * 2 * 7
+    one = client.call(hist, StateHistory.Request(after=before, until=seen[-3].header.stamp))
+    assert len(one.stamps) == 2  # (after, until]
+    n1 = len(seen)
+    assert client.reset("Square", "D0", 1).success
+    span = client.call(hist, StateHistory.Request(after=before))
+    assert not span.success and span.reason_code == "SCENE_CHANGED"
+    for _ in range(8):  # the ring keeps 8 periods: the first reset's are gone
+        client.target([0.5, 0.0, 0.3])
+    assert client.spin_until(lambda: len(seen) >= n1 + 9)
+    old = client.call(hist, StateHistory.Request(after=before))
+    assert not old.success and old.reason_code == "HISTORY_EXPIRED"
+    assert proc.proc.poll() is None, "driver died"

@@ -50,6 +50,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--in-process", action="store_true", help="run without the ROS graph")
     p.add_argument("--perception", default="estimate", choices=["estimate", "ground_truth"],
                    help="in-process only; the graph uses params/perception.yaml")
+    p.add_argument("--observation-source", default="ground_truth", choices=["ground_truth", "estimate"],
+                   help="what obs/<id>_pose records: the sim's true poses, or the estimates (in-process; the "
+                        "graph uses params/datagen.yaml's observation_source)")
     p.add_argument("--startup-timeout", type=float, default=60.0)
     return p
 
@@ -98,6 +101,7 @@ def run_in_process(a) -> int:
     req = RunRequest(task=a.task, variant=a.variant, method=a.method, attempts=a.attempts,
                      target_successes=a.target_successes, seed=a.seed, first_index=a.first_index,
                      augment=a.augment, selection=a.selection, output_dir=_output(a), source_demos=a.source_demos,
+                     observation_source=a.observation_source,
                      **({"video_attempts": a.video_attempts} if a.video_attempts >= 0 else {}),
                      **({"initiation_candidates": a.initiation_candidates} if a.initiation_candidates else {}),
                      **({"profile": a.profile} if a.profile else {}))

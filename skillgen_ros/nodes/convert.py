@@ -60,8 +60,8 @@ def joint_state(names, positions, velocities=None, efforts=None, frame_id: str =
 
 
 def seconds_to_duration(t: float) -> Duration:
-    sec = int(np.floor(t))
-    return Duration(sec=sec, nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000)
+    ns = int(round(t * 1e9))  # rounded once: 1.9999999999 s is 2 s (not 1 s + a nanosec field wrapped to 0)
+    return Duration(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 def duration_to_seconds(d: Duration) -> float:

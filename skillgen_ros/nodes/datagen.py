@@ -7,7 +7,8 @@ The run loop, dataset, report and video are core code (core/generation/session.p
 maps the action goal onto a RunRequest, streams feedback (attempts, successes, rate, ETA) and can
 record the session through the recorder's services.
 
-Parameters (params/datagen.yaml): demos_dir, output_root, collision_source, action_noise, profile
+Parameters (params/datagen.yaml): demos_dir, output_root, collision_source, action_noise,
+observation_source (ground_truth: the sim's true object poses in obs/<id>_pose; estimate: a real robot), profile
 (the algorithm profile, core/generation/profile.py: paper or skillgen_ros; a goal's `profile` overrides it),
 release.* (how the hand lets go before a planned motion: core/generation/release.py), driver_node and
 video_camera_hz (the driver's camera rate while an attempt is filmed), and the per-call timeouts
@@ -29,6 +30,7 @@ from skillgen_interfaces.msg import FailureCount
 from skillgen_interfaces.srv import PlanToPose, Recorder, RunAttempt
 from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
 from skillgen_ros.core.generation.profile import DEFAULT_PROFILE, get_profile
+from skillgen_ros.core.generation.episode import OBSERVATION_SOURCES
 from skillgen_ros.core.generation.release import ReleaseConfig
 from skillgen_ros.core.generation.session import RunRequest, run_generation, validate_request
 from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
@@ -49,6 +51,7 @@ class DatagenNode(Node):
         self.declare_parameter("collision_source", "scene")
         self.declare_parameter("action_noise", 0.05)
         self.declare_parameter("profile", DEFAULT_PROFILE)
+        self.declare_parameter("observation_source", "ground_truth")
         for k, v in _RELEASE_PARAMS.items():
             self.declare_parameter(f"release.{k}", v)
         self.declare_parameter("driver_node", "sim_driver")
@@ -58,6 +61,10 @@ class DatagenNode(Node):
         src = str(self.get_parameter("collision_source").value)
         if src not in ("point_cloud", "scene"):
             raise ParameterError(f"collision_source must be point_cloud or scene, got {src!r}")
+        self._observation_source = str(self.get_parameter("observation_source").value)
+        if self._observation_source not in OBSERVATION_SOURCES:
+            raise ParameterError(f"observation_source must be one of {OBSERVATION_SOURCES}, "
+                                 f"got {self._observation_source!r}")
         self._release = self._release_config()
         try:
             self._profile = get_profile(str(self.get_parameter("profile").value)).name
@@ -70,7 +77,8 @@ class DatagenNode(Node):
                                collision_source=PlanToPose.Request.SOURCE_POINT_CLOUD if src == "point_cloud"
                                else PlanToPose.Request.SOURCE_SCENE,
                                driver_node=str(self.get_parameter("driver_node").value),
-                               video_camera_hz=float(self.get_parameter("video_camera_hz").value))
+                               video_camera_hz=float(self.get_parameter("video_camera_hz").value),
+                               observation_source=self._observation_source)
         self._busy = threading.Lock()
         cb = ReentrantCallbackGroup()
         self.rec_start = self.create_client(Recorder, "recorder/start", callback_group=cb)
@@ -104,7 +112,8 @@ class DatagenNode(Node):
                           augment_translation=float(g.augment_translation or 0.08),
                           augment_rotation_deg=float(g.augment_rotation_deg or 80.0),
                           action_noise=float(self.get_parameter("action_noise").value),
-                          release=self._release, profile=getattr(g, "profile", "") or self._profile,
+                          release=self._release, observation_source=self._observation_source,
+                          profile=getattr(g, "profile", "") or self._profile,
                           selection=g.selection or "random", output_dir=out, source_demos=g.source_demos,
                           **_video_attempts(g), **_initiation_candidates(g))
 

@@ -13,11 +13,15 @@ Bad input never stops the driver: services answer with a reason code, actions wi
 and rejected osc_target messages are logged and published as "REASON: message" on driver/errors;
 the robot keeps its previous command. Targets more than 0.10 m outside the workspace box are
 rejected (OUT_OF_WORKSPACE), nearer ones clamped onto it (core/sim/commands.py).
+Every published state also goes into a bounded ring (history_periods), answered by the
+`state_history` service: the measured states of an executed trajectory and the world's object
+poses (the sim's ground truth) per period, for a dataset's steps, without a topic reader in the loop.
 """
 from __future__ import annotations
 
 import threading
 import time
+from collections import deque
 from typing import Callable
 
 import numpy as np
@@ -34,7 +38,7 @@ from geometry_msgs.msg import PoseStamped
 
 from skillgen_interfaces.action import ExecuteTrajectory, Gripper
 from skillgen_interfaces.msg import GripperState, ObjectPose, ObjectPoseArray, OscTarget, SceneObject
-from skillgen_interfaces.srv import CaptureCameras, ResetScene, TaskSuccess
+from skillgen_interfaces.srv import CaptureCameras, ResetScene, StateHistory, TaskSuccess
 from skillgen_ros.core.errors import ParameterError, SkillGenError
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
@@ -64,6 +68,7 @@ PARAMS = {  # name: (default, description)
     "initial_task": ("", "task to reset to at startup ('' = empty scene until reset_scene)"),
     "initial_variant": ("D0", "variant for initial_task"),
     "initial_seed": (0, "seed for initial_task"),
+    "history_periods": (12000, "control periods kept for state_history (12000: 10 min at 20 Hz)"),
 }
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -99,6 +104,10 @@ class DriverNode(Node):
         self._last_step_wall = time.monotonic()
         self._types: dict[str, str] = {}
         self._clock_base = 0.0  # lockstep: sim seconds of earlier scenes, so /clock never goes back
+        if int(self.param("history_periods")) < 1:
+            raise ParameterError("history_periods must be >= 1")
+        # (stamp ns, arm + finger positions (9,), object ids, object poses (K, 7), kind) per published state
+        self._history: deque = deque(maxlen=int(self.param("history_periods")))
 
         cb = ReentrantCallbackGroup()
         # publishers without default QoS-event handlers: each handler joins every executor wait set,
@@ -122,6 +131,7 @@ class DriverNode(Node):
         self.create_service(ResetScene, "reset_scene", self._on_reset, callback_group=cb)
         self.create_service(TaskSuccess, "task_success", self._on_success, callback_group=cb)
         self.create_service(CaptureCameras, "capture_cameras", self._on_capture, callback_group=cb)
+        self.create_service(StateHistory, "state_history", self._on_history, callback_group=cb)
         self.traj_server = ActionServer(self, ExecuteTrajectory, "execute_trajectory", self._exec_traj,
                                         goal_callback=self._one_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT,
                                         callback_group=cb)
@@ -171,24 +181,27 @@ class DriverNode(Node):
             return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
         return self.get_clock().now().to_msg()
 
-    def _advance(self, fn) -> None:
-        """Run one control period (fn does it on the world), then publish the new state."""
+    def _advance(self, fn, kind: int) -> None:
+        """Run one control period (fn does it on the world), then publish the new state; `kind`
+        (StateHistory.Response.<KIND>) says what drove it."""
         with self.lock:
             fn()
             self.period += 1
             self._last_step_wall = time.monotonic()
-            self._publish(cameras=self.cameras.due(self.period))
+            self._publish(cameras=self.cameras.due(self.period), kind=kind)
 
     def _on_target(self, msg: OscTarget) -> None:
         try:
-            target = validate_osc_target(*convert.pose_arrays_from_msg(msg.pose))
+            arrays = convert.pose_arrays_from_msg(msg.pose)
+            validate_osc_target(*arrays)  # rejects here; the world validates the message's own values again, so
+            target = Pose(*arrays)  # they are normalized once, bit for bit as an in-process world.step does
             grip = validate_gripper(msg.gripper)
         except SkillGenError as e:
             return self._report(e)
         if self.busy:
             return self._report(SkillGenError("osc_target ignored while an action drives the robot", "BUSY"))
         if self.mode == "lockstep":
-            self._advance(lambda: self.world.step(target, grip))
+            self._advance(lambda: self.world.step(target, grip), StateHistory.Response.OSC_TARGET)
         else:
             self._pending = (target, grip)
 
@@ -197,9 +210,12 @@ class DriverNode(Node):
             if self.busy:
                 return  # the running action advances the world on its own schedule
             pending, self._pending = self._pending, None
-            self._advance((lambda: self.world.step(*pending)) if pending else (lambda: self.world.idle(1)))
+            if pending:
+                self._advance(lambda: self.world.step(*pending), StateHistory.Response.OSC_TARGET)
+            else:
+                self._advance(lambda: self.world.idle(1), StateHistory.Response.HOLD)
         elif not self.busy and time.monotonic() - self._last_step_wall >= float(self.param("lockstep_timeout_s")):
-            self._advance(lambda: self.world.idle(1))
+            self._advance(lambda: self.world.idle(1), StateHistory.Response.HOLD)
 
     def _report(self, e: SkillGenError) -> None:
         self.get_logger().warning(str(e), throttle_duration_sec=1.0)
@@ -213,7 +229,7 @@ class DriverNode(Node):
                 time.sleep(delay)
 
     # ----------------------------------------------------------------- publishing
-    def _publish(self, cameras: bool, force: bool = False) -> None:
+    def _publish(self, cameras: bool, force: bool = False, kind: int = StateHistory.Response.RESET) -> None:
         """Publish this period's state. A topic nobody subscribes to is skipped (building and
         serializing the message is most of a publish in rclpy, and no reader can tell the
         difference: none of these is latched but ground truth, which `force`, e.g. on a reset,
@@ -225,6 +241,11 @@ class DriverNode(Node):
         def wanted(*pubs) -> bool:
             return force or any(p.get_subscription_count() for p in pubs)
 
+        q = np.concatenate([w.joint_positions(), w.finger_positions()])
+        poses = w.object_poses() if w.scene is not None else {}
+        self._history.append((stamp.sec * 1_000_000_000 + stamp.nanosec, q, tuple(poses),
+                              np.array([p.as_array() for p in poses.values()]).reshape(-1, 7), kind))
+
         if self.pub_clock is not None and wanted(self.pub_clock):
             self.pub_clock.publish(Clock(clock=stamp))
         # the external wrench on the hand (a Panda's O_F_ext_hat_K); before joint_states, which
@@ -232,7 +253,6 @@ class DriverNode(Node):
         if wanted(self.pub_wrench):
             self.pub_wrench.publish(convert.wrench_stamped(w.ee_wrench(), self.frame, stamp))
         if wanted(self.pub_js):
-            q = np.concatenate([w.joint_positions(), w.finger_positions()])
             qd = np.concatenate([w.joint_velocities(), np.zeros(2)])
             self.pub_js.publish(convert.joint_state(ARM_JOINTS + FINGER_JOINTS, q, qd, stamp=stamp))
         if wanted(self.pub_grip):
@@ -244,7 +264,7 @@ class DriverNode(Node):
         if w.scene is not None and wanted(self.pub_gt):
             self.pub_gt.publish(ObjectPoseArray(header=header, objects=[
                 ObjectPose(id=oid, type=self._types[oid], pose=convert.pose_to_msg(p), confidence=1.0)
-                for oid, p in w.object_poses().items()]))
+                for oid, p in poses.items()]))
         if cameras:  # only cameras with a reader, even when forced: none is latched
             self.cameras.publish(w, stamp, bool(self.param("publish_points")))
 
@@ -285,6 +305,32 @@ class DriverNode(Node):
             return res
         res.success, res.reason_code, res.stamp = True, "OK", stamp
         res.message = f"captured {', '.join(self.cameras.names)}"
+        return res
+
+    def _on_history(self, req: StateHistory.Request, res: StateHistory.Response) -> StateHistory.Response:
+        after = req.after.sec * 1_000_000_000 + req.after.nanosec
+        until = req.until.sec * 1_000_000_000 + req.until.nanosec or None
+        with self.lock:
+            if self._history and self._history[0][0] > after and len(self._history) == self._history.maxlen:
+                res.reason_code, res.message = "HISTORY_EXPIRED", "periods after that stamp are no longer kept"
+                return res
+            rows = []
+            for row in reversed(self._history):  # requests are for recent periods: walk back from the newest
+                if row[0] <= after:
+                    break
+                if until is None or row[0] <= until:
+                    rows.append(row)
+        rows.reverse()
+        if any(r[4] == StateHistory.Response.RESET for r in rows[1:]):
+            res.reason_code, res.message = "SCENE_CHANGED", "the periods span a reset_scene"
+            return res
+        res.stamps = [Time(sec=t // 1_000_000_000, nanosec=t % 1_000_000_000) for t, *_ in rows]
+        res.kinds = [int(r[4]) for r in rows]
+        res.joint_positions = [float(v) for r in rows for v in r[1][:7]]
+        res.finger_positions = [float(v) for r in rows for v in r[1][7:9]]
+        res.object_ids = list(rows[0][2]) if rows else []
+        res.object_poses = np.concatenate([r[3].reshape(-1) for r in rows]).tolist() if rows else []
+        res.success, res.reason_code, res.message = True, "OK", f"{len(rows)} periods"
         return res
 
     def _on_success(self, req: TaskSuccess.Request, res: TaskSuccess.Response) -> TaskSuccess.Response:
@@ -328,7 +374,7 @@ class DriverNode(Node):
                     return result
                 out = {}
                 try:
-                    self._advance(lambda: out.update(r=self.world.step_trajectory()))
+                    self._advance(lambda: out.update(r=self.world.step_trajectory()), StateHistory.Response.TRAJECTORY)
                 except SkillGenError as e:  # e.g. reset_scene while the trajectory ran
                     self._report(e)
                     handle.abort()
@@ -362,7 +408,7 @@ class DriverNode(Node):
         t0, k, last = time.monotonic(), 0, -1.0
         try:
             while k < GRIPPER_WAIT_S * self.hz:
-                self._advance(lambda: self.world.idle(1))
+                self._advance(lambda: self.world.idle(1), StateHistory.Response.GRIPPER)
                 width = float(self.world.gripper_width())
                 handle.publish_feedback(Gripper.Feedback(width=width))
                 if abs(width - last) < 2e-4:

@@ -10,9 +10,13 @@ estimate. Filming an attempt for the MP4 is graph_video.AttemptVideo's job.
 Observations come from `joint_states` (arm and finger joints; the EE pose is FK through
 pinocchio, within 1e-8 m of the driver's `ee_pose`) and the same period's `ee_wrench`,
 read on demand (nodes/latest.py) so that the driver's hundreds of periods a second in lockstep do
-not wake this node; object poses in observations are the latest estimates (never ground truth).
-Motion-planner steps are recorded from the planned trajectory sampled at the control rate
-(commanded states, FK through pinocchio); skill steps are the measured states skill_replay saw.
+not wake this node. Observations carry the state's stamp and the robot's belief of the object
+poses (latest estimates, a grasped object moved with the hand); the sim's true poses come from the
+driver's `state_history` (one call per motion, and one per attempt for the rest, by stamp:
+`true_object_poses`), never from a topic reader in the control loop. Motion-planner steps are the
+measured states of the driver's trajectory periods (state_history); a driver without that service
+(a real robot) gets the planned trajectory sampled at the control rate (commanded states, FK
+through pinocchio). Skill steps are the measured states skill_replay saw.
 Every call has a timeout; a node that does not answer becomes a failure with a reason
 (PERCEPTION_FAILED, PLAN_FAILED, SKILL_FAILED, TIMEOUT) instead of a hang.
 """
@@ -31,17 +35,19 @@ from std_msgs.msg import String
 
 from skillgen_interfaces.action import ReplaySkill
 from skillgen_interfaces.msg import OscTarget, SceneObject
-from skillgen_interfaces.srv import CaptureCameras, EstimatePoses, LoadDemos, PlanToPose, ResetScene, TaskSuccess
+from skillgen_interfaces.srv import (CaptureCameras, EstimatePoses, LoadDemos, PlanToPose, ResetScene, StateHistory,
+                                     TaskSuccess)
 from skillgen_ros.answered import first_answer
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
-from skillgen_ros.core.generation.grasp import GraspTracker, grasp_step
+from skillgen_ros.core.generation.grasp import CLOSE_PERIODS, GraspTracker, beliefs_along, grasp_step
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
 from skillgen_ros.nodes import convert
 from skillgen_ros.nodes.graph_video import AttemptVideo
 from skillgen_ros.nodes.latest import LatestMessage, wait_future
+from skillgen_ros.nodes.state_history import DriverHistory, ns
 
 
 class GraphCallError(SkillGenError):
@@ -53,12 +59,14 @@ class RosGraphEnv:
 
     def __init__(self, node: Node, timeouts: dict, demos_dir: str = "", action_noise: float = 0.05,
                  collision_source: int = PlanToPose.Request.SOURCE_POINT_CLOUD, control_hz: float = 20.0,
-                 driver_node: str = "sim_driver", video_camera_hz: float = 10.0):
+                 driver_node: str = "sim_driver", video_camera_hz: float = 10.0,
+                 observation_source: str = "ground_truth"):
         self.node = node
         self.t = dict(timeouts)
         self.demos_dir = demos_dir
         self.collision_source = collision_source
         self.dt = 1.0 / control_hz
+        self.observation_source = observation_source  # "estimate": skill steps carry the belief (beliefs_along)
         group = ReentrantCallbackGroup()
         self.reset_cli = node.create_client(ResetScene, "reset_scene", callback_group=group)
         self.success_cli = node.create_client(TaskSuccess, "task_success", callback_group=group)
@@ -67,6 +75,8 @@ class RosGraphEnv:
         self.replay_ac = ActionClient(node, ReplaySkill, "replay_skill", callback_group=group)
         self.capture_cli = node.create_client(CaptureCameras, "capture_cameras", callback_group=group)
         self.load_demos_cli = node.create_client(LoadDemos, "skill_replay/load_demos", callback_group=group)
+        self.history = DriverHistory(node.create_client(StateHistory, "state_history", callback_group=group),
+                                     lambda cli, req: self._call(cli, req, self.t["state"], "state_history", "TIMEOUT"))
         self.video = AttemptVideo(node, driver_node, video_camera_hz, group)
         self._lock = threading.RLock()
         self.osc_pub = node.create_publisher(OscTarget, "osc_target", 10)
@@ -86,6 +96,7 @@ class RosGraphEnv:
         self._plan_seed: int | None = None
         self._plans = 0
         self._estimates: dict[str, Pose] = {}
+        self.last_estimate: tuple[int, dict] | None = None  # (cloud stamp ns, what perception returned)
         self._skill_object: str | None = None
         self.grasps = GraspTracker()
 
@@ -153,6 +164,7 @@ class RosGraphEnv:
             self.task_pub.publish(String(data=task))
             self._task_sent = task
         self._estimates = {}
+        self.last_estimate = None
         self.grasps.clear()
         if not self.wait_for_state(self.t["state"], after=count):
             raise GraphCallError("no joint_states from the driver after reset", reason="TIMEOUT")
@@ -176,11 +188,20 @@ class RosGraphEnv:
         with self._lock:
             q, f = self._q.copy(), self._fingers.copy()
         ee_pose = Pose.from_matrix(self.kin.fk(q))
+        return Observation(ee_pose=ee_pose, gripper=f, joint_positions=q, object_poses=self._belief(ee_pose.matrix()),
+                           ee_wrench=wrench, stamp_ns=None if joints is None else ns(joints.header.stamp))
+
+    def _belief(self, T_W_E: np.ndarray) -> dict[str, Pose]:
+        """Where the robot believes the objects are: the latest estimates, a held object with the hand."""
         objects = dict(self._estimates)
         held = self.grasps.holding()
-        if held in objects:  # a held object moves with the hand (rigid attachment)
-            objects[held] = self.grasps.pose_now(held, ee_pose.matrix())
-        return Observation(ee_pose=ee_pose, gripper=f, joint_positions=q, object_poses=objects, ee_wrench=wrench)
+        if held in objects:  # rigid attachment
+            objects[held] = self.grasps.pose_now(held, T_W_E)
+        return objects
+
+    def true_object_poses(self, stamps) -> dict[int, dict[str, np.ndarray]]:
+        """The sim's true object poses of the periods stamped `stamps` (ns), in one state_history call."""
+        return self.history.true_object_poses(stamps)
 
     def load_demos(self, task: str) -> None:
         """Have skill_replay load the run's source demos before the first attempt (raises with its
@@ -253,9 +274,10 @@ class RosGraphEnv:
         held = self.grasps.holding()
         if resp.status != EstimatePoses.Response.OK and not resp.poses:
             raise SkillGenError(f"estimate_poses: {resp.status_name}: {resp.message}", reason="PERCEPTION_FAILED")
-        for p in resp.poses:
-            if p.id != held:  # the hand occludes a held object; the grasp tracker knows where it is
-                self._estimates[p.id] = convert.pose_from_msg(p.pose)
+        seen = {p.id: convert.pose_from_msg(p.pose) for p in resp.poses if p.id != held}
+        self._estimates.update(seen)  # the hand occludes a held object; the grasp tracker knows where it is
+        floor = self._cloud_floor
+        self.last_estimate = (None if floor is None else ns(floor), seen)  # frames of that stamp (or newer)
         return dict(self._estimates)
 
     def current_ee_pose(self) -> Pose:
@@ -301,7 +323,10 @@ class RosGraphEnv:
         req.timeout = float(self.t["plan"])
         req.execute = True
         self._moved = True
-        req.start_positions = [float(v) for v in self.current_q()]
+        start = self._joints.latest()
+        self._take_joints(start)
+        with self._lock:
+            req.start_positions = [float(v) for v in self._q]
         req.objects = self._scene_for_planner()
         req.manipulated_object = self._skill_object or ""
         req.extras = self._planner_extras
@@ -311,18 +336,34 @@ class RosGraphEnv:
         resp = self._call(self.plan_cli, req, self.t["plan"] + self.t["execute"], "plan_to_pose", "PLAN_FAILED",
                           idempotent=False)  # it moves the robot
         status = resp.status_name or str(resp.status)
-        if resp.status != PlanToPose.Response.SUCCESS:
+        executed = resp.status in (PlanToPose.Response.SUCCESS, PlanToPose.Response.EXECUTION_FAILED)
+        if executed and start is not None and self.history.ready():
+            obs = self._executed_periods(ns(start.header.stamp))  # measured, as the in-process env records
+        elif resp.status == PlanToPose.Response.SUCCESS:
+            obs = self._planned_samples(resp.trajectory)
+        else:
             return status, []
-        _, times, pos, _ = convert.trajectory_from_msg(resp.trajectory)
-        obs = []
+        if obs:
+            obs[-1] = self.observe()  # the state where execution ended, with its wrench
+        return status, obs
+
+    def _executed_periods(self, after_ns: int) -> list[Observation]:
+        """One observation per trajectory period the driver ran after `after_ns` (state_history)."""
+        return [Observation(ee_pose=Pose.from_matrix(T := self.kin.fk(q)), gripper=f, joint_positions=q,
+                            object_poses=self._belief(T), stamp_ns=t, true_object_poses=truth)
+                for t, q, f, truth in self.history.trajectory_periods(after_ns)]
+
+    def _planned_samples(self, trajectory) -> list[Observation]:
+        """A driver without state_history: the planned trajectory at the control rate (commanded)."""
+        _, times, pos, _ = convert.trajectory_from_msg(trajectory)
         fingers = self.observe().gripper
+        out = []
         for t in np.arange(self.dt, times[-1] + 1e-9, self.dt):
             q = np.array([np.interp(t, times, pos[:, j]) for j in range(pos.shape[1])])
-            obs.append(Observation(ee_pose=Pose.from_matrix(self.kin.fk(q)), gripper=fingers, joint_positions=q,
-                                   object_poses=dict(self._estimates)))
-        if obs:
-            obs[-1] = self.observe()  # the measured state where execution ended
-        return status, obs
+            T = self.kin.fk(q)
+            out.append(Observation(ee_pose=Pose.from_matrix(T), gripper=fingers, joint_positions=q,
+                                   object_poses=self._belief(T)))
+        return out
 
     def replay_skill(self, skill_index: int, demo_index: int, T_W_O: np.ndarray, sigma: float,
                      recovery: bool, seed: int):
@@ -345,17 +386,31 @@ class RosGraphEnv:
             "gripper_widths": np.asarray(r.gripper_widths, float).reshape(n),
             "recovery": np.asarray(r.recovery_steps, bool).reshape(n),
         }
+        if n and len(r.stamps) == n and self.history.ready():
+            steps.update(self.history.skill_periods([ns(t) for t in r.stamps]))
+        if self.observation_source == "estimate":  # the belief is what such a dataset records
+            steps["object_poses"] = self._beliefs_along(steps)
         self._track_grasp(steps)
         return steps, bool(r.success), r.reason, r.message
+
+    def _beliefs_along(self, steps) -> list[dict]:
+        """The belief before each skill step (grasp.beliefs_along), as SimGenerationEnv tracks it."""
+        held = self.grasps.holding()
+        return beliefs_along(self._estimates, None if held is None else (held, self.grasps.object_in_ee(held)),
+                             self._skill_object, [Pose.from_array(e).matrix() for e in steps["ee_poses"]],
+                             steps["actions_abs"][:, 7])
 
     def _track_grasp(self, steps) -> None:
         """After a skill: if the hand closed on the skill's object, remember it rigidly attached."""
         k = grasp_step(steps["actions_abs"][:, 7])
         obj = self._skill_object
         if k is None:
-            self.grasps.released()
+            opened, at = np.flatnonzero(steps["actions_abs"][:, 7] <= 0), None
+            if len(opened):  # the state the opening command led to
+                at = Pose.from_array(steps["ee_poses"][min(opened[0] + 1, len(steps["ee_poses"]) - 1)]).matrix()
+            self._estimates.update(self.grasps.released(at))  # believed there until perception looks again
         elif obj in self._estimates and k < len(steps["ee_poses"]):
-            k_settled = min(k + 5, len(steps["ee_poses"]) - 1)  # the fingers need a few periods to close
+            k_settled = min(k + CLOSE_PERIODS, len(steps["ee_poses"]) - 1)  # the fingers need a few periods to close
             self.grasps.grasped(obj, self._estimates[obj].matrix(), Pose.from_array(steps["ee_poses"][k_settled]).matrix())
 
     def _wait_action(self, send_future, timeout: float):
@@ -391,4 +446,5 @@ class RosGraphEnv:
 
     def collided(self) -> bool:
         return False  # the planner's EXECUTION_FAILED status carries execution problems
+
 

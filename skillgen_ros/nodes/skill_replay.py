@@ -10,7 +10,8 @@ controller period. The current EE pose is forward kinematics (pinocchio) of thos
 robot_state_publisher would give it: one topic closes the loop, so the driver sends one message
 per period to this node instead of two (every reader of a topic costs the publisher a delivery).
 Feedback every step (at most feedback_hz per wall second: every step in real time, rate-limited in
-lockstep); the result carries every executed step, so datagen can write the dataset.
+lockstep); the result carries every executed step, with the stamp of the joint state it started
+from, so datagen can write the dataset (and look up the sim's true object poses of those periods).
 
 The step loop is the graph's hot path (one round trip per control period), so the node runs on a
 SingleThreadedExecutor and the action is a coroutine that awaits the next joint state: no thread
@@ -180,11 +181,11 @@ class SkillReplayNode(Node):
                 return finish(False, "TIMEOUT", "no joint_states from the driver")
         q, width, current = self._unpack(state)
         plan = plan_replay(seg, T_W_O, current, recovery=bool(g.recovery))
-        actions, abs_, ees, qs, widths = [], [], [], [], []
+        actions, abs_, ees, qs, widths, stamps = [], [], [], [], [], []
         n = len(plan.targets)
         for k in range(n):
             if goal_handle.is_cancel_requested:  # the steps done so far still come back
-                self._fill(res, actions, abs_, ees, qs, widths, plan.recovery[:k])
+                self._fill(res, actions, abs_, ees, qs, widths, stamps, plan.recovery[:k])
                 goal_handle.canceled()
                 res.reason, res.message = "CANCELED", f"canceled at step {k}"
                 return res
@@ -201,20 +202,21 @@ class SkillReplayNode(Node):
             ees.append(matrix_to_array(current))
             qs.append(q)
             widths.append(width)
+            stamps.append(state.header.stamp)
             self.osc_pub.publish(msg)
             state = await self._wait_state(count, timeout)
             if state is None:
-                self._fill(res, actions, abs_, ees, qs, widths, plan.recovery[:k + 1])
+                self._fill(res, actions, abs_, ees, qs, widths, stamps, plan.recovery[:k + 1])
                 return finish(False, "TIMEOUT", f"driver did not step within {timeout} s at step {k}")
             q, width, current = self._unpack(state)
             if feedback.due(k == n - 1):
                 goal_handle.publish_feedback(ReplaySkill.Feedback(
                     step=k + 1, total_steps=n, stage="recovery" if plan.recovery[k] else "skill"))
-        self._fill(res, actions, abs_, ees, qs, widths, plan.recovery)
+        self._fill(res, actions, abs_, ees, qs, widths, stamps, plan.recovery)
         return finish(True, "OK", f"replayed skill {g.skill_index} of demo {j} ({n} steps)")
 
     @staticmethod
-    def _fill(res, actions, abs_, ees, qs, widths, recovery):
+    def _fill(res, actions, abs_, ees, qs, widths, stamps, recovery):
         res.steps = len(actions)
         res.actions = np.asarray(actions, float).reshape(-1).tolist()
         res.actions_abs = np.asarray(abs_, float).reshape(-1).tolist()
@@ -222,6 +224,7 @@ class SkillReplayNode(Node):
         res.joint_positions = np.asarray(qs, float).reshape(-1).tolist()
         res.gripper_widths = [float(w) for w in widths]
         res.recovery_steps = [bool(r) for r in recovery]
+        res.stamps = list(stamps)
 
 
 def main(args=None) -> int:

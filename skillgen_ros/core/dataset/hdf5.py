@@ -8,6 +8,7 @@
         actions_abs        (T, 8)   absolute pose (xyz, xyzw) + gripper
         states, rewards, dones
         labels/<key>       (T, ...) mp_step, skill_index, source_demo, initiation_target, augmented
+        estimates/         (E, ...) perception's estimates as events: step, stamp, <id>_pose (optional)
     mask/<filter_key>      (M,) demo names, e.g. "successful", "source_0", a failure reason
 
 Demos are appended one at a time and the file is flushed after each, so a run that dies
@@ -118,6 +119,10 @@ class DatasetWriter:
         lab = g.create_group("labels")
         for k in sorted(episode.labels):
             self._ds(lab, k, episode.labels[k])
+        if episode.estimates:
+            est = g.create_group("estimates")
+            for k in sorted(episode.estimates):
+                self._ds(est, k, episode.estimates[k])
         g.attrs["num_samples"] = episode.num_samples
         g.attrs["object_ids"] = json.dumps(list(episode.object_ids))
         for k, v in sorted((attrs or {}).items()):
@@ -197,6 +202,8 @@ def validate_dataset(path: str) -> DatasetSummary:
                 for k in g[grp]:
                     if g[grp][k].shape[0] != T:
                         raise bad(f"{name}/{grp}/{k} has {g[grp][k].shape[0]} rows, expected {T}")
+            if "estimates" in g:
+                _check_estimates(g["estimates"], T, bad, name)
             total += T
         if total != int(data.attrs["total"]):
             raise bad(f"data.attrs['total'] = {int(data.attrs['total'])} but demos hold {total} samples")
@@ -209,6 +216,23 @@ def validate_dataset(path: str) -> DatasetSummary:
                     raise bad(f"mask/{k} names missing demos {missing[:3]}")
                 keys[k] = len(names)
         return DatasetSummary(str(path), len(data), total, keys, env_args)
+
+
+def _check_estimates(est, T: int, bad, name: str) -> None:
+    """estimates/: step (E,) ints in [0, T], stamp (E,), <id>_pose (E, 7) (NaN rows: not estimated)."""
+    for k in ("step", "stamp"):
+        if k not in est or est[k].ndim != 1:
+            raise bad(f"{name}/estimates lacks {k} (E,)")
+    E = est["step"].shape[0]
+    steps = est["step"][()]
+    if steps.dtype.kind not in "iu" or np.any(steps < 0) or np.any(steps > T) or np.any(np.diff(steps) < 0):
+        raise bad(f"{name}/estimates/step must be non-decreasing integers in [0, {T}]")
+    for k in est:
+        if k in ("step", "stamp"):
+            if est[k].shape != (E,):
+                raise bad(f"{name}/estimates/{k} has shape {est[k].shape}, expected ({E},)")
+        elif not k.endswith("_pose") or est[k].shape != (E, 7):
+            raise bad(f"{name}/estimates/{k} is not an <id>_pose of shape ({E}, 7)")
 
 
 def _attr_value(v):
@@ -232,7 +256,8 @@ def read_episode(path: str, demo: str) -> tuple[Episode, dict]:
         attrs.pop("num_samples", None)
         ep = Episode(obs={k: g["obs"][k][()] for k in g["obs"]}, actions=g["actions"][()],
                      actions_abs=g["actions_abs"][()], states=g["states"][()], rewards=g["rewards"][()],
-                     dones=g["dones"][()], labels={k: g["labels"][k][()] for k in g["labels"]}, object_ids=ids)
+                     dones=g["dones"][()], labels={k: g["labels"][k][()] for k in g["labels"]}, object_ids=ids,
+                     estimates={k: g["estimates"][k][()] for k in g["estimates"]} if "estimates" in g else {})
     return ep, attrs
 
 

@@ -26,6 +26,7 @@ def make_env_args(task: str, variant: str, method: str, seed: int, config: Gener
                        "augment_rotation_deg": config.augmentation.rotation_deg,
                        "interpolation_steps": config.interpolation_steps, "fixed_steps": config.fixed_steps,
                        "initiation_candidates": config.initiation_candidates,
+                       "observation_source": config.observation_source,
                        "profile": config.profile, "release_moves": config.release.unjam_max > 0
                        or config.release.follow > 0 or config.release.clear_max > 0,
                        "planner_extras": config.planner_extras, "check_collisions": config.check_collisions,

@@ -25,7 +25,7 @@ from ..skills.replay import plan_replay
 from ..skills.protocols import SkillLike, TaskLike
 from ..skills.segment import SourceDemo
 from ..skills.transform import matrix_to_array
-from .episode import Episode, EpisodeRecorder, Observation, StepLabel
+from .episode import OBSERVATION_SOURCES, Episode, EpisodeRecorder, Observation, StepLabel
 from .initiation import initiation_candidates
 from .mimicgen import check_subtasks, run_mimicgen
 from .outcome import GOAL_INFEASIBLE, FailureReason, motion_failure  # noqa: F401 (re-exported)
@@ -80,10 +80,13 @@ class GenerationConfig:
     release: ReleaseConfig = ReleaseConfig()
     profile: str = DEFAULT_PROFILE  # recorded; RunRequest.config() applies it (profile.py)
     planner_extras: bool = True  # the planner's start repairs (MotionPlanner.plan extras)
+    # what obs/<id>_pose records (episode.py): "ground_truth" (a sim: the true pose at every step) or
+    # "estimate" (a real robot: perception's estimates, a grasped object moved with the hand)
+    observation_source: str = "ground_truth"
 
     def __post_init__(self):
         if (self.action_noise < 0 or self.interpolation_steps < 0 or self.fixed_steps < 0 or self.max_steps < 1
-                or self.initiation_candidates < 1):
+                or self.initiation_candidates < 1 or self.observation_source not in OBSERVATION_SOURCES):
             raise InvalidInputError(f"invalid generation config {self}", reason="INVALID_PARAMETER")
 
 
@@ -124,7 +127,7 @@ class _Attempt:
         self.candidates_used: list[int] = []
         self.success_seen = False  # MimicGen: task success at any step (mimicgen.py)
         self.strategy = make_strategy(config.selection, **config.selection_params)
-        self.rec = EpisodeRecorder()
+        self.rec = EpisodeRecorder(config.observation_source)
         self.timings = {k: 0.0 for k in ("reset", "perception", "motion", "skill", "success")}
         self.t0 = time.perf_counter()
         self.obs: Observation | None = None
@@ -139,11 +142,11 @@ class _Attempt:
         if self.cfg.time_limit_s is not None and time.perf_counter() - self.t0 > self.cfg.time_limit_s:
             raise _Fail(FailureReason.TIMEOUT, f"attempt exceeded {self.cfg.time_limit_s} s")
 
-    def _step(self, target: np.ndarray, gripper: float, sigma: float, label: StepLabel) -> None:
+    def _step(self, target: np.ndarray, gripper: float, sigma: float, label: StepLabel, rng=None) -> None:
         """One OSC step toward `target`: normalized delta action (+ noise), executed and recorded."""
         self._budget()
         current = self.obs.ee_matrix()
-        action, commanded = make_action(target, current, gripper, sigma, self.rng_noise, self.cfg.scale)
+        action, commanded = make_action(target, current, gripper, sigma, rng or self.rng_noise, self.cfg.scale)
         try:
             nxt = self.env.step(Pose.from_matrix(commanded), float(gripper))
         except (SkillGenError, TimeoutError) as e:
@@ -163,6 +166,12 @@ class _Attempt:
             extras(self.cfg.planner_extras)
         self.obs = self.env.observe()
         self._timed("reset", t)
+        try:  # a ground_truth dataset needs an env that knows the true poses: fail before anything moves
+            self.rec.require_ground_truth(self.obs, getattr(self.env, "true_object_poses", None))
+        except (SkillGenError, TimeoutError) as e:
+            if getattr(e, "reason", "") == "NO_GROUND_TRUTH":
+                raise
+            raise _Fail(FailureReason.TIMEOUT, f"true object poses after the reset: {e}") from e
 
     def estimate(self, skill: SkillLike) -> np.ndarray:
         t = time.perf_counter()
@@ -176,6 +185,8 @@ class _Attempt:
             raise _Fail(FailureReason.PERCEPTION_FAILED, f"no pose for skill {skill.index} object {skill.object_id!r}")
         if not self.obs.object_poses or not self.rec:  # observations carry the estimates from here on
             self.obs = self.env.observe()
+        stamp, seen = getattr(self.env, "last_estimate", None) or (self.obs.stamp_ns, poses)
+        self.rec.add_estimate(stamp, seen)  # what perception saw, apart from the recorded observations
         p = poses[skill.object_id]
         return p.matrix() if isinstance(p, Pose) else np.asarray(p, float)
 
@@ -281,11 +292,12 @@ class _Attempt:
         if hasattr(self.env, "replay_skill"):
             return self.remote_skill(skill, j, T_W_O, goal7)
         cmds = plan_replay(seg, T_W_O, self.obs.ee_matrix(), self.cfg.augment, self.cfg.augmentation)
+        rng = np.random.default_rng(int(self.rng_noise.integers(2**63 - 1)))  # drawn as remote_skill seeds skill_replay
         t = time.perf_counter()
         try:
             for T, g, rec in zip(cmds.targets, cmds.gripper, cmds.recovery):
                 sigma = 0.0 if rec else self.cfg.action_noise  # recovery poses are planned, not demonstrated
-                self._step(T, float(g), sigma, StepLabel(False, skill.index, j, goal7, bool(rec)))
+                self._step(T, float(g), sigma, StepLabel(False, skill.index, j, goal7, bool(rec)), rng)
         finally:
             self._timed("skill", t)
 
@@ -304,9 +316,14 @@ class _Attempt:
         finally:
             self._timed("skill", t)
         objects = dict(self.obs.object_poses)
-        for k in range(len(steps["actions"])):
-            obs = Observation(ee_pose=steps["ee_poses"][k], gripper=np.full(2, steps["gripper_widths"][k] / 2),
-                              joint_positions=steps["joint_positions"][k], object_poses=objects)
+        beliefs, stamps, truth = (steps.get(k) for k in ("object_poses", "stamps_ns", "true_object_poses"))
+        fingers = steps.get("fingers", np.repeat(np.asarray(steps["gripper_widths"])[:, None] / 2, 2, axis=1))
+        for k in range(len(steps["actions"])):  # per step what the env has: stamps, the sim's truth, beliefs
+            obs = Observation(ee_pose=steps["ee_poses"][k], gripper=fingers[k],
+                              joint_positions=steps["joint_positions"][k],
+                              object_poses=beliefs[k] if beliefs is not None else objects,
+                              true_object_poses=truth[k] if truth is not None else None,
+                              stamp_ns=int(stamps[k]) if stamps is not None else None)
             a = steps["actions"][k]
             self.rec.add(obs, a, steps["actions_abs"][k][:7], float(steps["actions_abs"][k][7]),
                          StepLabel(False, skill.index, j, goal7, bool(steps["recovery"][k])))
@@ -383,6 +400,11 @@ def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: Ta
             reason, message = FailureReason.TASK_FAILED, "all skills ran but the task success check failed"
     except _Fail as f:
         reason, message = f.reason, str(f)
+    try:
+        a.rec.resolve_from(getattr(env, "true_object_poses", None))
+    except (SkillGenError, TimeoutError) as e:  # the steps cannot be recorded truthfully: keep none of them
+        reason, message = FailureReason.TIMEOUT, f"true object poses of the attempt's steps: {e}"
+        a.rec = EpisodeRecorder(config.observation_source)
     a.timings["total"] = time.perf_counter() - a.t0
     success = reason is FailureReason.OK
     return AttemptResult(index=index, method=method, success=success, reason=reason, message=message,

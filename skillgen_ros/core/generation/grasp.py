@@ -22,8 +22,12 @@ class GraspTracker:
     def grasped(self, object_id: str, T_W_O_before: np.ndarray, T_W_E_at_grasp: np.ndarray) -> None:
         self._in_hand = {object_id: invert(np.asarray(T_W_E_at_grasp, float)) @ np.asarray(T_W_O_before, float)}
 
-    def released(self) -> None:
+    def released(self, T_W_E_now: np.ndarray | None = None) -> dict[str, Pose]:
+        """Let go; returns where the held object was believed to be at that moment (none without a pose)."""
+        out = {} if T_W_E_now is None else {k: Pose.from_matrix(np.asarray(T_W_E_now, float) @ T)
+                                              for k, T in self._in_hand.items()}
         self._in_hand.clear()
+        return out
 
     def holding(self) -> str | None:
         return next(iter(self._in_hand), None)
@@ -44,3 +48,38 @@ def grasp_step(gripper_commands: np.ndarray) -> int | None:
         return None
     opened = np.flatnonzero(g <= 0)
     return int(opened[-1] + 1) if len(opened) else 0
+
+
+CLOSE_PERIODS = 5  # control periods the fingers take to close on an object
+
+
+def beliefs_along(estimates: dict, held: tuple[str, np.ndarray] | None, skill_object: str | None,
+                  ee_matrices, gripper_commands) -> list[dict]:
+    """The robot's belief of the object poses before each step of a commanded sequence, as an env
+    tracks it while stepping: a held object (id, T_E^O) follows the hand until the command opens,
+    then stays where the hand let it go; the skill's object follows the hand from CLOSE_PERIODS
+    after the command closed. `ee_matrices[k]` is the EE pose before step k."""
+    tracker, estimates = GraspTracker(), dict(estimates)
+    if held is not None:
+        tracker.grasped(held[0], held[1], np.eye(4))
+    out, last, closing = [], (1.0 if held else -1.0), -1
+    for k, T in enumerate(ee_matrices):
+        belief = dict(estimates)
+        h = tracker.holding()
+        if h is not None:
+            belief[h] = tracker.pose_now(h, T)
+        out.append(belief)
+        after = ee_matrices[k + 1] if k + 1 < len(ee_matrices) else T  # where the command of step k leads
+        g = float(gripper_commands[k])
+        if g > 0 >= last:
+            closing = CLOSE_PERIODS
+        elif g <= 0 < last:
+            estimates.update(tracker.released(after))
+            closing = -1
+        last = g
+        if closing > 0:
+            closing -= 1
+            if closing == 0 and skill_object in estimates:
+                p = estimates[skill_object]
+                tracker.grasped(skill_object, p.matrix() if isinstance(p, Pose) else np.asarray(p), after)
+    return out

@@ -48,6 +48,7 @@ class RunRequest:
     initiation_candidates: int = 0
     release: ReleaseConfig = ReleaseConfig()  # how the hand lets go before a planned motion (release.py)
     profile: str = DEFAULT_PROFILE  # "paper" or "skillgen_ros" (profile.py)
+    observation_source: str = "ground_truth"  # obs/<id>_pose: the sim's true poses, or "estimate" (a real robot)
 
     def config(self) -> GenerationConfig:
         """The attempt settings, with the profile applied; `paper` refuses a candidate count other than 1."""
@@ -62,7 +63,8 @@ class RunRequest:
                                 max_steps=self.max_steps, initiation_candidates=n,
                                 release=self.release if prof.release_moves else self.release.without_moves(),
                                 check_collisions=prof.check_collisions, profile=prof.name,
-                                planner_extras=prof.planner_extras)
+                                planner_extras=prof.planner_extras,
+                                observation_source=self.observation_source)
 
 
 def validate_request(req: RunRequest, known_tasks: Sequence[str]) -> None:

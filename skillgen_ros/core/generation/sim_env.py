@@ -5,7 +5,9 @@ this one is the baseline that measures the graph's overhead and the throughput c
 is what shards of a large run use. Perception is explicit: "estimate" runs the model-based
 pipeline on the front camera's cloud, "ground_truth" reads the sim's true poses (an ablation,
 never a silent fallback). Collision geometry for planning comes from the scene's object parts
-placed at the perceived poses ("scene") or from the camera cloud ("cloud").
+placed at the perceived poses ("scene") or from the camera cloud ("cloud"). Observations carry
+both the sim's true object poses (what a ground_truth dataset records) and the belief the attempt
+acts on (estimates, a grasped object moved with the hand), stamped with the sim time.
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from ..sim.camera import CameraConfig
 from ..sim.world import SimWorld
 from ..tasks.spec import ObjectSpec
 from .episode import Observation
-from .grasp import GraspTracker
+from .grasp import CLOSE_PERIODS, GraspTracker
 
 PERCEPTION_MODES = ("estimate", "ground_truth")
 COLLISION_SOURCES = ("scene", "cloud")
@@ -105,6 +107,7 @@ class SimGenerationEnv:
         self.grasps = GraspTracker()
         self._last_gripper, self._closing = -1.0, -1
         self._estimates: dict[str, Pose] = {}
+        self.last_estimate: tuple[int, dict] | None = None  # (sensor stamp ns, what perception returned)
         self._collided = False
         self._models = None
         self._frames: list | None = None
@@ -116,6 +119,7 @@ class SimGenerationEnv:
     def reset(self, task: str, variant: str, seed: int):
         self.scene = self.world.reset(task, variant, seed)
         self._estimates = {}
+        self.last_estimate = None
         self.grasps.clear()
         self._last_gripper, self._closing = -1.0, -1
         self._last_attached = self._last_support = None
@@ -130,17 +134,20 @@ class SimGenerationEnv:
         if self.cfg.images:
             images = {"front": _resize(w.render("front").rgb, self.cfg.image_size),
                       "wrist": w.render("wrist").rgb}
-        ee = w.ee_pose()
+        q = w.joint_positions()
+        ee = Pose.from_matrix(self.kin.fk(q))  # FK of the joints, as the graph sees the EE (1e-8 m from pybullet's)
         objects = dict(self._estimates)
         held = self.grasps.holding()
         if held in objects:  # a held object moves with the hand (rigid attachment)
             objects[held] = self.grasps.pose_now(held, ee.matrix())
-        return Observation(ee_pose=ee, gripper=w.finger_positions(), joint_positions=w.joint_positions(),
-                           object_poses=objects, images=images, ee_wrench=w.ee_wrench())
+        return Observation(ee_pose=ee, gripper=w.finger_positions(), joint_positions=q,
+                           object_poses=objects, images=images, ee_wrench=w.ee_wrench(),
+                           true_object_poses=w.object_poses(), stamp_ns=_ns(w.time))
 
     def estimate_poses(self) -> dict[str, Pose]:
         if self.cfg.perception == "ground_truth":
             self._estimates = self.world.object_poses()
+            self.last_estimate = (_ns(self.world.time), dict(self._estimates))
             return dict(self._estimates)
         from ..perception.models import models_for_objects
         from ..perception.pipeline import estimate_poses
@@ -153,7 +160,9 @@ class SimGenerationEnv:
         if not res.ok:
             raise SkillGenError(f"perception: {res.status.name}: {res.message}", reason="PERCEPTION_FAILED")
         held = self.grasps.holding()
-        self._estimates.update({k: v.pose for k, v in res.poses.items() if k != held})
+        seen = {k: v.pose for k, v in res.poses.items() if k != held}
+        self._estimates.update(seen)
+        self.last_estimate = (_ns(self.world.time), seen)
         self._obstacle_cloud = res.obstacles
         return dict(self._estimates)
 
@@ -271,9 +280,9 @@ class SimGenerationEnv:
         """Rigid attachment from the command stream: a few periods after the hand closes on the
         skill's object, remember it in the EE frame (GraspTracker); opening releases it."""
         if gripper > 0 >= self._last_gripper:
-            self._closing = 5  # periods for the fingers to close
-        elif gripper <= 0 < self._last_gripper:
-            self.grasps.released()
+            self._closing = CLOSE_PERIODS
+        elif gripper <= 0 < self._last_gripper:  # believed where the hand let go, until perception looks again
+            self._estimates.update(self.grasps.released(self.world.ee_pose().matrix()))
             self._closing = -1
         self._last_gripper = gripper
         if self._closing > 0:
@@ -304,6 +313,10 @@ class SimGenerationEnv:
 
     def close(self) -> None:
         self.world.close()
+
+
+def _ns(t: float) -> int:
+    return int(round(t * 1e9))
 
 
 def _resize(rgb: np.ndarray, size: int) -> np.ndarray:

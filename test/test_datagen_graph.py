@@ -261,7 +261,9 @@ def test_graph_records_the_true_object_poses_the_in_process_env_records(graph, t
     contact = int(np.flatnonzero(ep.actions_abs[:, 7] > 0)[0])  # the first closing command
     assert contact > 30 and len(g["actions"]) > contact
     for k, v in local.items():
-        if k.startswith("estimates/"):
-            np.testing.assert_allclose(g[k], v, atol=1e-5, err_msg=k)  # two runs of the same perception
+        if k.startswith("estimates/"):  # two runs of the same perception on the same scene, until contact;
+            # after it the two sims differ by mm (a held nut near the peg changes the peg's estimate)
+            before = ep.estimates["step"] <= contact
+            np.testing.assert_allclose(g[k][before], v[before], atol=1e-5, err_msg=k)
         else:
             np.testing.assert_allclose(g[k][:contact], v[:contact], atol=1e-4, err_msg=k)

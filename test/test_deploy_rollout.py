@@ -17,7 +17,9 @@ from skillgen_ros.core.errors import InvalidInputError, SkillGenError
 from skillgen_ros.core.generation.seeds import scene_seed
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.skills.actions import pose_to_delta_action
+from skillgen_ros.core.robot import TABLE_Z
 from skillgen_ros.core.tasks import get_task
+from skillgen_ros.core.tasks.spec import SceneState
 
 TASK = FakeTask()
 DEMOS = make_source_demos(3)
@@ -208,21 +210,24 @@ def test_tamp_goal_checks_on_true_poses():
     task = get_task("Square")
     grasp, place = task.skills
     nut, peg = task.object("square_nut"), task.object("square_peg")
-    peg_pose = Pose([0.6, 0.12, peg.half_extents[2]], [0, 0, 0, 1])
-    resting = Pose([0.48, -0.1, nut.half_extents[2]], [0, 0, 0, 1])
-    lifted = Pose([0.48, -0.1, 0.08], [0, 0, 0, 1])
-    handle_ee = np.array([0.48 + 0.05, -0.1, 0.08, 1, 0, 0, 0])
+    peg_pose = Pose([0.79, 0.10, TABLE_Z + peg.half_extents[2]], [0, 0, 0, 1])
+    resting = Pose([0.48, -0.1, TABLE_Z + nut.half_extents[2]], [0, 0, 0, 1])
+    lifted = Pose([0.48, -0.1, TABLE_Z + 0.08], [0, 0, 0, 1])
+    handle_ee = np.array([0.48 + 0.05, -0.1, TABLE_Z + 0.08, 1, 0, 0, 0])
     ring = nut.keypoint("ring_center")
-    seated = Pose(peg_pose.position + [-ring[0], -ring[1], -0.02], [0, 0, 0, 1])
+    seated = Pose(peg_pose.position + [-ring[0], -ring[1], -peg.half_extents[2] + 0.02], [0, 0, 0, 1])
     assert skill_goal_reached(task, grasp, {"square_nut": lifted, "square_peg": peg_pose}, handle_ee, 0.02, 1.0)
     assert not skill_goal_reached(task, grasp, {"square_nut": resting, "square_peg": peg_pose}, handle_ee, 0.02, 1.0)
     assert not skill_goal_reached(task, grasp, {"square_nut": lifted, "square_peg": peg_pose}, handle_ee, 0.0, 1.0)
     assert not skill_goal_reached(task, grasp, {"square_nut": lifted, "square_peg": peg_pose}, handle_ee, 0.02, -1.0)
     poses = {"square_nut": seated, "square_peg": peg_pose}
-    assert task.is_success(poses)
-    assert skill_goal_reached(task, place, poses, handle_ee, 0.08, -1.0)
-    assert not skill_goal_reached(task, place, poses, handle_ee, 0.02, 1.0)  # still holding it
-    assert not skill_goal_reached(task, place, {"square_nut": lifted, "square_peg": peg_pose}, handle_ee, 0.08, -1.0)
+    away = np.array([*(peg_pose.position + [0, 0, 0.2]), 1, 0, 0, 0])  # the hand let go and rose
+    assert task.is_success(SceneState(poses, away[:3], -1.0))
+    assert skill_goal_reached(task, place, poses, away, 0.08, -1.0)
+    assert not skill_goal_reached(task, place, poses, away, 0.02, 1.0)  # still holding it
+    ring_ee = np.array([*seated.position, 1, 0, 0, 0])  # open, but the hand still at the nut (robosuite r_reach)
+    assert not skill_goal_reached(task, place, poses, ring_ee, 0.08, -1.0)
+    assert not skill_goal_reached(task, place, {"square_nut": lifted, "square_peg": peg_pose}, away, 0.08, -1.0)
 
 
 def test_tamp_without_ground_truth_is_perception_failed():

@@ -107,10 +107,11 @@ def test_graph_and_in_process_rollouts_agree(graph, checkpoint, mode):
         policy[k:k + s.policy_steps] = True
         k += s.policy_steps
     err = np.linalg.norm(graph_ee[:, :3] - mine.ee_trajectory[:, :3], axis=1)
-    # m: the graph's EE is FK of joint_states, in-process pybullet's link frame (1e-8 apart). In class mode
-    # the rollout stays within float noise; in tamp mode the policy runs 3x longer with the nut in hand,
-    # and contact amplifies that 1e-8 after the grasp (measured: 0.5 um 18 steps in, 1.6 mm 120 steps later)
-    assert policy.any() and err[policy].max() < {"class": 1e-5, "tamp": 5e-3}[mode], err
+    # m: both paths compute the EE as FK of the joints. Before the fingers touch the nut the two agree to
+    # 1e-9 m; after it, contact amplifies float differences (the graph's sim-time rounding, its hold
+    # periods): on the faithful tasks (robosuite pegs, 0.79 m out) class mode drifts 0.4 mm over its
+    # policy steps, tamp mode (3x longer with the nut in hand) 1.6 mm. Same reason, steps and skill log.
+    assert policy.any() and err[policy].max() < {"class": 2e-3, "tamp": 5e-3}[mode], err
     # motion rows: the graph env reports the planned trajectory (commanded), in-process the measured state
     assert err[~policy].max() < 0.02, err
 

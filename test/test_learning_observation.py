@@ -21,7 +21,9 @@ def _obs(rng, images=True):
 def test_policy_obs_equals_the_recorded_row(images):
     rng = np.random.default_rng(0)
     obs = [_obs(rng, images) for _ in range(4)]
-    rec = EpisodeRecorder()
+    # policy_obs feeds the robot's belief (object_poses): the row an observation_source "estimate"
+    # dataset records; a "ground_truth" dataset records the sim's true poses (docs/hsp.md)
+    rec = EpisodeRecorder("estimate")
     for o in obs:
         pose = np.r_[0, 0, 0, 0, 0, 0, 1.0]
         rec.add(o, np.zeros(7), pose, -1.0, StepLabel(False, 0, 0, pose))

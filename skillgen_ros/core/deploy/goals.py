@@ -21,14 +21,14 @@ import numpy as np
 from ..geometry import Pose
 from ..robot import TABLE_Z
 from ..tasks import suite
-from ..tasks.spec import SkillSpec, TaskSpec
+from ..tasks.spec import SceneState, SkillSpec, TaskSpec
 
 LIFT_M = 0.03  # lifted clear of the table (m above the resting height)
 REACH_M = 0.08  # object origin within this of the hand, beyond its own half extent
 MIN_WIDTH_M = 0.002  # fingers closed on something, not on air
 
 
-def _placement(task: TaskSpec, held: str, fixture: str) -> Callable[[Mapping[str, Pose]], bool]:
+def _placement(task: TaskSpec, held: str, fixture: str) -> Callable[[SceneState], bool]:
     obj, fix = task.object(held), task.object(fixture)
     if "peg" in fix.type:
         return lambda p: suite.nut_on_peg(obj, fix, p)
@@ -43,7 +43,8 @@ def skill_goal_reached(task: TaskSpec, skill: SkillSpec, true_poses: Mapping[str
                        gripper_width: float, gripper_command: float) -> bool:
     """The skill's effect on the true state (see the module docstring)."""
     if skill.mode == "transfer" and skill.attached_object:
-        return gripper_command < 0 and _placement(task, skill.attached_object, skill.object_id)(true_poses)
+        state = SceneState(dict(true_poses), np.asarray(ee_pose[:3], float), float(gripper_command))
+        return gripper_command < 0 and _placement(task, skill.attached_object, skill.object_id)(state)
     if skill.object_id not in true_poses:
         return False
     obj = task.object(skill.object_id)

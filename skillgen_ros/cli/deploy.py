@@ -15,8 +15,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
-import subprocess
 import sys
 import threading
 import time
@@ -205,35 +203,15 @@ def rollouts_through_graph(client: HspClient, a, out: str) -> list:
 
 
 def run_graph(a) -> int:
-    from skillgen_ros import rosenv
+    from skillgen_ros.cli.launcher import graph_client
     from skillgen_ros.core.deploy import summarize
 
     out = _output(a)
     os.makedirs(out, exist_ok=True)
-    graph = subprocess.Popen([sys.executable, "-m", "skillgen_ros.cli.main", "launch", "deploy"],
-                             env=rosenv.ros_environment(dict(os.environ)), start_new_session=True)
-    client = None
-    try:
-        client = HspClient()
-        end = time.monotonic() + a.startup_timeout
-        while not client.wait_for_server(1.0) and time.monotonic() < end:
-            if graph.poll() is not None:
-                raise SkillGenError(f"the deploy graph stopped during start-up (exit {graph.returncode})",
-                                    reason="GRAPH_DIED")
-        if not client.wait_for_server(0.1):
-            raise SkillGenError("the deploy graph did not come up (hsp 'run_task' action missing)", reason="GRAPH_NOT_READY")
+    with graph_client("deploy", HspClient, "hsp 'run_task'", a.startup_timeout) as (_graph, client):
         results = rollouts_through_graph(client, a, out)
         _report(summarize(a.task, a.variant, a.mode, results), out, {"path": "graph"})
         return 0
-    finally:
-        if client is not None:
-            client.close()
-        if graph.poll() is None:
-            graph.send_signal(signal.SIGINT)
-            try:
-                graph.wait(30)
-            except subprocess.TimeoutExpired:
-                os.killpg(graph.pid, signal.SIGKILL)
 
 
 def main(argv: list[str]) -> int:

@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
-import subprocess
 import sys
 import time
 
@@ -129,23 +127,10 @@ def run_in_process(a) -> int:
 def run_graph(a) -> int:
     from tqdm import tqdm
 
+    from skillgen_ros.cli.launcher import graph_client
     from skillgen_ros.client import SkillGenClient
-    from skillgen_ros import rosenv
 
-    env = rosenv.ros_environment(dict(os.environ))
-    graph = subprocess.Popen([sys.executable, "-m", "skillgen_ros.cli.main", "launch", "datagen"], env=env,
-                             start_new_session=True)
-    client = None
-    try:
-        client = SkillGenClient()
-        end = time.monotonic() + a.startup_timeout
-        while not client.wait_for_server(1.0) and time.monotonic() < end:
-            if graph.poll() is not None:
-                raise SkillGenError(f"the generation graph stopped during start-up (exit {graph.returncode})",
-                                    reason="GRAPH_DIED")
-        if not client.wait_for_server(0.1):
-            raise SkillGenError("the generation graph did not come up (datagen 'generate' action missing)",
-                                reason="GRAPH_NOT_READY")
+    with graph_client("datagen", SkillGenClient, "datagen 'generate'", a.startup_timeout) as (graph, client):
         ok = client.generate(task=a.task, variant=a.variant, method=a.method, attempts=a.attempts,
                              target_successes=a.target_successes, seed=a.seed, first_index=a.first_index,
                              augment=a.augment, augment_translation=0.08, augment_rotation_deg=80.0,
@@ -181,15 +166,6 @@ def run_graph(a) -> int:
             print(f"run ended early: {res.reason}: {res.message}", file=sys.stderr)
             return 1
         return 0
-    finally:
-        if client is not None:
-            client.close()
-        if graph.poll() is None:
-            graph.send_signal(signal.SIGINT)  # the launcher forwards it to every node once
-            try:
-                graph.wait(30)
-            except subprocess.TimeoutExpired:
-                os.killpg(graph.pid, signal.SIGKILL)
 
 
 def main(argv: list[str]) -> int:

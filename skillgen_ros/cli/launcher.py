@@ -14,9 +14,11 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 from skillgen_ros import rosenv
+from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.graphs import PACKAGE, UnknownNodeError, load_graph, node_executables, processes
 
 
@@ -131,3 +133,33 @@ def _wait_all(procs, timeout: float) -> None:
         except subprocess.TimeoutExpired:
             p.kill()
             p.wait()
+
+
+@contextmanager
+def graph_client(graph: str, make_client, server: str, startup_timeout: float):
+    """Launch `graph` (`skillgen launch`) in its own session, yield an action client once `server`
+    answers, and stop the graph on exit (SIGINT, which the launcher forwards to every node once;
+    SIGKILL to the session after 30 s). GRAPH_DIED / GRAPH_NOT_READY if it never comes up."""
+    proc = subprocess.Popen([sys.executable, "-m", "skillgen_ros.cli.main", "launch", graph],
+                            env=rosenv.ros_environment(dict(os.environ)), start_new_session=True)
+    client = None
+    try:
+        client = make_client()
+        end = time.monotonic() + startup_timeout
+        while not client.wait_for_server(1.0) and time.monotonic() < end:
+            if proc.poll() is not None:
+                raise SkillGenError(f"the {graph} graph stopped during start-up (exit {proc.returncode})",
+                                    reason="GRAPH_DIED")
+        if not client.wait_for_server(0.1):
+            raise SkillGenError(f"the {graph} graph did not come up ({server} action missing)",
+                                reason="GRAPH_NOT_READY")
+        yield proc, client
+    finally:
+        if client is not None:
+            client.close()
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(30)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)

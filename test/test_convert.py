@@ -39,3 +39,16 @@ def test_trajectory_round_trip():
     v = q * 0.5
     n2, t2, q2, v2 = convert.trajectory_from_msg(convert.trajectory_to_msg(names, t, q, v))
     assert n2 == names and np.allclose(t2, t) and np.allclose(q2, q) and np.allclose(v2, v)
+
+
+def test_seconds_to_duration_carries_rounded_nanoseconds_into_seconds():
+    # 1.9999999999 s rounds to 2_000_000_000 ns: that is sec=2, nanosec=0, never nanosec=10**9.
+    for t, (sec, nsec) in {1.9999999999: (2, 0), 0.9999999996: (1, 0), 2.5: (2, 500_000_000),
+                           0.0: (0, 0), 3.000000001: (3, 1), 1e-10: (0, 0)}.items():
+        d = convert.seconds_to_duration(t)
+        assert (d.sec, d.nanosec) == (sec, nsec), t
+        assert 0 <= d.nanosec < 1_000_000_000
+    for t in np.linspace(0.0, 5.0, 1001):
+        d = convert.seconds_to_duration(float(t))
+        assert 0 <= d.nanosec < 1_000_000_000
+        assert abs(convert.duration_to_seconds(d) - t) <= 1e-9

@@ -4,6 +4,7 @@
     skillgen bag record [-o DIR] [TOPIC ...|--all] [...]   runs the recorder node until Ctrl-C
     skillgen bag play <bag> [--rate R] [--loop] [...]      runs the player node until done
     skillgen bag recover <bag>                            finalize the .mcap files of a killed recording
+    skillgen bag reindex <bag> [<bag> ...] [--no-backup]  complete rosbag2 v9 metadata (QoS) of old bags
 
 Bad input prints one line "REASON: message" and exits 2; no tracebacks.
 """
@@ -48,6 +49,18 @@ def _recover(ns) -> int:
         print(f"recovered {f.path} ({f.message_count} messages); original kept as {f.backup.name}")
     if not done:
         print(f"{ns.bag}: every file is already finalized; nothing to do")
+    return 0
+
+
+def _reindex(ns) -> int:
+    from skillgen_ros.core.bag.recover import reindex_bag
+
+    for bag in ns.bags:
+        r = reindex_bag(bag, keep_backup=not ns.no_backup)
+        for f in r.rewritten:
+            kept = f"; original kept as {f.backup.name}" if f.backup else ""
+            print(f"rewrote {f.path} ({f.message_count} messages, complete QoS){kept}")
+        print(f"{r.path}: metadata.yaml {'rewritten' if r.metadata_changed else 'already complete'}")
     return 0
 
 
@@ -106,6 +119,9 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("--json", action="store_true", help="machine-readable output")
     rc = sub.add_parser("recover", help="finalize truncated .mcap files (killed recording)")
     rc.add_argument("bag")
+    ri = sub.add_parser("reindex", help="regenerate metadata.yaml (complete v9 QoS) from the .mcap files")
+    ri.add_argument("bags", nargs="+")
+    ri.add_argument("--no-backup", action="store_true", help="do not keep rewritten .mcap files as .orig")
     r = sub.add_parser("record", help="record topics (Ctrl-C finalizes the bag)")
     r.add_argument("topics", nargs="*")
     r.add_argument("-a", "--all", action="store_true", help="record every discovered topic")
@@ -127,7 +143,8 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str]) -> int:
     ns = _parser().parse_args(argv)
     try:
-        return {"info": _info, "record": _record, "play": _play, "recover": _recover}[ns.cmd](ns)
+        return {"info": _info, "record": _record, "play": _play, "recover": _recover,
+                "reindex": _reindex}[ns.cmd](ns)
     except SkillGenError as e:
         print(str(e), file=sys.stderr)
         return 2

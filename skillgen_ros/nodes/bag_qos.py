@@ -12,15 +12,11 @@ from rclpy.duration import Duration
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
                        ReliabilityPolicy)
 
-_INFINITE_NS = 0x7FFFFFFFFFFFFFFF
-_INFINITE = {"sec": 2147483647, "nsec": 4294967295}  # how rosbag2 v9 writes "infinite"
+from skillgen_ros.core.bag.qos import complete_profile, duration_dict
 
 
 def _dur(d: Duration) -> dict:
-    ns = d.nanoseconds
-    if ns >= _INFINITE_NS or ns < 0:
-        return dict(_INFINITE)
-    return {"sec": ns // 10**9, "nsec": ns % 10**9}
+    return duration_dict(d.nanoseconds)
 
 
 def _policy_name(value) -> str:
@@ -29,8 +25,8 @@ def _policy_name(value) -> str:
 
 
 def qos_to_dict(q: QoSProfile) -> dict:
-    """One offered QoS profile in rosbag2 metadata version 9 form."""
-    return {
+    """One offered QoS profile in rosbag2 metadata version 9 form (all keys, core/bag/qos.py)."""
+    return complete_profile({
         "history": _policy_name(q.history),
         "depth": int(q.depth),
         "reliability": _policy_name(q.reliability),
@@ -40,7 +36,7 @@ def qos_to_dict(q: QoSProfile) -> dict:
         "liveliness": _policy_name(q.liveliness),
         "liveliness_lease_duration": _dur(q.liveliness_lease_duration),
         "avoid_ros_namespace_conventions": bool(q.avoid_ros_namespace_conventions),
-    }
+    })
 
 
 def subscription_qos(offered: Iterable[QoSProfile], depth: int) -> QoSProfile:

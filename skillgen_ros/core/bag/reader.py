@@ -63,8 +63,8 @@ class McapFileInfo:
 
 
 @dataclass
-class _Scan:
-    """What one pass over a file found (mutable while scanning, frozen into the infos after)."""
+class FileScan:
+    """What one pass over a file found (filled in while `stream_records` runs; recover.py reads it)."""
 
     schemas: dict[int, Schema] = field(default_factory=dict)
     channels: dict[int, Channel] = field(default_factory=dict)
@@ -82,8 +82,9 @@ class _Scan:
 _TAIL_ERRORS = (McapError, struct.error, EOFError, ValueError, OSError, RuntimeError)
 
 
-def _records(path: Path, scan: _Scan) -> Iterator[tuple[Channel, Message]]:
-    """Stream every message in file order; stop quietly (scan.truncated) at a damaged tail."""
+def stream_records(path: Path, scan: FileScan) -> Iterator[tuple[Channel, Message]]:
+    """Stream every message in file order, filling `scan` (schemas, channels, metadata records,
+    chunk compressions) as records arrive; stop quietly (scan.truncated) at a damaged tail."""
     with open(path, "rb") as f:
         stream = StreamReader(f, skip_magic=True, emit_chunks=True, validate_crcs=True).records
         head = f.read(8)
@@ -126,8 +127,8 @@ def _is_finalized(path: Path) -> bool:
         return f.read() == MAGIC
 
 
-def _scan_file(path: Path) -> _Scan:
-    scan = _Scan()
+def _scan_file(path: Path) -> FileScan:
+    scan = FileScan()
     if _is_finalized(path):
         try:
             with open(path, "rb") as f:
@@ -144,9 +145,9 @@ def _scan_file(path: Path) -> _Scan:
                     scan.library = reader.get_header().library
                     return scan
         except _TAIL_ERRORS:
-            scan = _Scan()  # damaged summary: fall back to the linear scan
+            scan = FileScan()  # damaged summary: fall back to the linear scan
     times = []
-    for channel, msg in _records(path, scan):
+    for channel, msg in stream_records(path, scan):
         scan.counts[channel.id] = scan.counts.get(channel.id, 0) + 1
         times.append(msg.log_time)
     scan.truncated = scan.truncated or not _is_finalized(path)
@@ -186,7 +187,7 @@ class BagReader:
             paths = [self.path]
         else:
             raise BagError(f"{self.path} is neither a bag directory nor an .mcap file", "NOT_A_BAG")
-        self._scans: dict[Path, _Scan] = {}
+        self._scans: dict[Path, FileScan] = {}
         for p in paths:
             try:
                 self._scans[p] = _scan_file(p)
@@ -199,7 +200,7 @@ class BagReader:
         self.files = tuple(self._file_info(p, s) for p, s in self._scans.items())
         self.topics = self._collect_topics()
         self.metadata_records = {k: v for s in self._scans.values() for k, v in s.metadata.items()}
-        self._typestores: dict = {}
+        self._decoders: dict = {}
 
     # -- summary ----------------------------------------------------------------------------
     @property
@@ -230,7 +231,7 @@ class BagReader:
         streams = [self._file_messages(p, s, wanted, start_ns, end_ns) for p, s in self._scans.items()]
         yield from heapq.merge(*streams, key=lambda m: m.log_time_ns)
 
-    def _file_messages(self, path: Path, scan: _Scan, wanted, start_ns, end_ns) -> Iterator[BagMessage]:
+    def _file_messages(self, path: Path, scan: FileScan, wanted, start_ns, end_ns) -> Iterator[BagMessage]:
         def keep(channel: Channel, msg: Message) -> bool:
             return ((wanted is None or channel.topic in wanted)
                     and (start_ns is None or msg.log_time >= start_ns)
@@ -248,37 +249,26 @@ class BagReader:
                     yield make(schema.name if schema else "", channel, msg)
             return
         # Killed recording: file order is receive order; sort within the file's recovered part.
-        rescan = _Scan()
+        rescan = FileScan()
         batch = [make(rescan.schemas[c.schema_id].name if c.schema_id in rescan.schemas else "", c, m)
-                 for c, m in _records(path, rescan) if keep(c, m)]
+                 for c, m in stream_records(path, rescan) if keep(c, m)]
         batch.sort(key=lambda m: m.log_time_ns)
         yield from batch
 
     def decode(self, message: BagMessage):
-        """Deserialize with the bag's own schema (rosbags), no ROS install needed: field names as in
-        the .msg, nested messages as dataclasses, arrays as numpy. BagError BAD_SCHEMA if unparsable."""
-        store = self._typestores.get(message.type)
-        if store is None:
-            from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
+        """Deserialize with the bag's own schema through mcap_ros2's public DecoderFactory, no ROS
+        install needed: field names as in the .msg, nested messages as objects, arrays as lists.
+        BagError BAD_SCHEMA if the schema does not parse, BAD_MESSAGE if the bytes do not decode."""
+        decoder = self._decoders.get(message.type)
+        if decoder is None:
             topic = next((t for t in self.topics.values() if t.type == message.type), None)
-            try:
-                store = get_typestore(Stores.EMPTY)
-                store.register(get_types_from_msg(topic.schema_text if topic else "", message.type))
-            except Exception as e:  # rosbags raises several parser error types
-                raise BagError(f"cannot parse the bag's schema for {message.type}: {e}", "BAD_SCHEMA") from None
-            self._typestores[message.type] = store
-        name = next((k for k in store.types if k.split("/")[0] == message.type.split("/")[0]
-                     and k.rsplit("/", 1)[1] == message.type.rsplit("/", 1)[1]), message.type)
-        # Not store.deserialize_cdr: it rejects trailing bytes, and rclpy-serialized messages can
-        # carry a few bytes of padding past the last field (seen with JointState).
-        msgdef = store.get_msgdef(name)
-        data = message.data
-        func = msgdef.deserialize_cdr_le if data[1:2] == b"\x01" else msgdef.deserialize_cdr_be
+            decoder = schema_decoder(message.type, topic.schema_text if topic else "")
+            self._decoders[message.type] = decoder
         try:
-            return func(data[4:], 0, msgdef.cls, store)[0]
-        except Exception as e:
-            raise BagError(f"cannot decode a {message.type} message on {message.topic}: {e}", "BAD_MESSAGE") from None
+            return decoder(message.data)
+        except Exception as e:  # the CDR reader raises plain errors on garbage bytes
+            raise BagError(f"cannot decode a {message.type} message on {message.topic}: "
+                           f"{type(e).__name__}: {e}", "BAD_MESSAGE") from None
 
     # -- internals --------------------------------------------------------------------------
     def _dir_files(self) -> list[Path]:
@@ -301,7 +291,7 @@ class BagReader:
         return paths
 
     @staticmethod
-    def _file_info(path: Path, s: _Scan) -> McapFileInfo:
+    def _file_info(path: Path, s: FileScan) -> McapFileInfo:
         return McapFileInfo(path=path, size_bytes=path.stat().st_size,
                             message_count=sum(s.counts.values()), start_ns=s.start_ns, end_ns=s.end_ns,
                             compression=tuple(sorted(s.compression)), chunk_count=s.chunks,
@@ -335,6 +325,23 @@ class BagReader:
                 type_hash=ch.metadata.get("topic_type_hash", "") or tm.get("type_description_hash", ""),
                 schema_text=schema.data.decode(errors="replace") if schema else "")
         return topics
+
+
+def schema_decoder(type_name: str, schema_text: str):
+    """bytes -> decoded message for one ros2msg schema (mcap_ros2.decoder.DecoderFactory).
+
+    BagError BAD_SCHEMA when the schema text is empty or does not parse."""
+    from mcap_ros2.decoder import DecoderFactory
+
+    try:
+        decoder = DecoderFactory().decoder_for("cdr", Schema(id=1, name=type_name, encoding="ros2msg",
+                                                             data=schema_text.encode()))
+    except Exception as e:  # the schema parser raises several error types
+        raise BagError(f"cannot parse the bag's schema for {type_name}: {type(e).__name__}: {e}",
+                       "BAD_SCHEMA") from None
+    if decoder is None or not schema_text.strip():
+        raise BagError(f"the bag has no ros2msg schema for {type_name}", "BAD_SCHEMA")
+    return decoder
 
 
 def message_class(type_name: str):

@@ -1,11 +1,13 @@
 """Full `ros2msg` schema text for installed message types (what rosbag2 stores per MCAP schema).
 
-The text is the type's .msg definition followed, for each nested type in first-use order, by a
-line of 80 '=', a line `MSG: pkg/Type` and that type's definition: the layout rosbag2 writes
-and that rosbags, Foxglove and mcap-ros2-support parse. Definitions come from the .msg files
-under `<prefix>/share/<pkg>/msg/`; service/action-derived types (`X_Request`, `X_Goal`,
-`X_FeedbackMessage`, `X_Event`, ...) come from their .srv/.action sections or, for the
-synthesized wrappers, from the rosidl type description JSON next to them. Pure: no rclpy.
+The installed definitions are parsed with rosbags.typesys (`get_types_from_msg` for .msg files
+and .srv/.action sections, `get_types_from_idl` for packages that ship only .idl) into one
+typestore per root type, with every nested type loaded from its own package; the schema text is
+then `Typestore.generate_msgdef(type, ros_version=2)`: the root definition, then per nested type
+a line of 80 '=', `MSG: pkg/Type` and its definition, the layout rosbag2 writes and rosbags,
+Foxglove and mcap-ros2-support parse. Synthesized service/action wrappers (`X_SendGoal_Request`,
+`X_FeedbackMessage`, `X_Event`, ...) have no .msg text: their fields come from the rosidl type
+description JSON installed next to the .action/.srv. Pure: no rclpy.
 """
 from __future__ import annotations
 
@@ -16,13 +18,12 @@ import re
 import sys
 from pathlib import Path
 
+from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
+from rosbags.typesys.base import Nodetype
+
 from skillgen_ros.core.errors import BagError
 
 SEPARATOR = "=" * 80
-PRIMITIVES = frozenset({
-    "bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16", "int32",
-    "uint32", "int64", "uint64", "string", "wstring", "time", "duration",
-})
 # rosidl type_description_interfaces/FieldType ids -> .msg primitive names.
 _FIELD_TYPES = {
     2: "int8", 3: "uint8", 4: "int16", 5: "uint16", 6: "int32", 7: "uint32", 8: "int64",
@@ -36,8 +37,8 @@ _ACTION_PARTS = ("Goal", "Result", "Feedback")
 
 def split_type(type_name: str) -> tuple[str, str, str]:
     """'pkg/msg/Type' or 'pkg/Type' -> (pkg, kind, Type); kind is msg, srv or action."""
-    parts = type_name.strip().split("/")
-    if len(parts) == 2:
+    parts = type_name.strip().split("/") if isinstance(type_name, str) else []
+    if len(parts) == 2 and all(parts):
         return parts[0], "msg", parts[1]
     if len(parts) == 3 and parts[1] in ("msg", "srv", "action") and all(parts):
         return parts[0], parts[1], parts[2]
@@ -93,6 +94,7 @@ def _description_fields(pkg: str, kind: str, name: str) -> list[dict] | None:
 
 
 def _fields_to_msg(fields: list[dict]) -> str:
+    """rosidl description fields -> .msg text (input for get_types_from_msg, never output)."""
     lines = []
     for f in fields:
         t = f["type"]
@@ -105,7 +107,7 @@ def _fields_to_msg(fields: list[dict]) -> str:
         elif tid > 48:
             base_id, suffix = tid - 48, f"[{cap}]"
         if base_id == 1:
-            base = short_name(t["nested_type_name"])
+            base = t["nested_type_name"]
         else:
             base = _FIELD_TYPES[base_id]
             if base_id in (21, 22) and scap:
@@ -114,74 +116,106 @@ def _fields_to_msg(fields: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
-@functools.lru_cache(maxsize=None)
-def definition(type_name: str) -> str:
-    """The type's own definition text (no nested types); BagError UNKNOWN_TYPE if not installed."""
-    pkg, kind, name = split_type(type_name)
+def _msg_text(pkg: str, kind: str, name: str) -> str | None:
+    """The installed .msg text, or the matching section of the .srv/.action file."""
     if kind == "msg":
         path = _find(pkg, "msg", name + ".msg")
-        if path is not None:
-            return path.read_text()
-    parts = {"srv": _SRV_PARTS, "action": _ACTION_PARTS}.get(kind, ())
-    hit = _derived(name, parts) if parts else None
-    if hit is not None:
-        path = _find(pkg, kind, f"{hit[0]}.{kind}")
-        if path is not None:
-            sections = re.split(r"^---\s*$", path.read_text(), flags=re.M)
-            if len(sections) == len(parts):
-                return sections[hit[1]].strip("\n") + "\n"
+        return path.read_text() if path is not None else None
+    hit = _derived(name, {"srv": _SRV_PARTS, "action": _ACTION_PARTS}[kind])
+    path = _find(pkg, kind, f"{hit[0]}.{kind}") if hit else None
+    if path is None:
+        return None
+    sections = re.split(r"^---\s*$", path.read_text(), flags=re.M)
+    return sections[hit[1]] if len(sections) == len({"srv": _SRV_PARTS}.get(kind, _ACTION_PARTS)) else None
+
+
+def _ours(name: str) -> str:
+    """rosbags files srv/action types as pkg/srv/msg/X; ours is pkg/srv/X."""
+    parts = name.split("/")
+    return "/".join(parts[:2] + parts[3:]) if len(parts) == 4 and parts[2] == "msg" else name
+
+
+def _theirs(name: str) -> str:
+    pkg, kind, n = split_type(_ours(name))
+    return f"{pkg}/msg/{n}" if kind == "msg" else f"{pkg}/{kind}/msg/{n}"
+
+
+def _fix_ref(desc, pkg: str):
+    """Field type names in rosbags' form; a .srv/.action section's relative name is pkg/msg/X."""
+    kind, spec = desc
+    if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+        return kind, (_fix_ref(spec[0], pkg), spec[1])
+    if kind == Nodetype.NAME:
+        p, k, n = split_type(_ours(spec))
+        if p == pkg and k in ("srv", "action") and not any(
+                _derived(n, parts) for parts in (_SRV_PARTS, _ACTION_PARTS)) and _find(p, "msg", n + ".msg"):
+            k = "msg"
+        return kind, _theirs(f"{p}/{k}/{n}")
+    return desc
+
+
+def _rosbags_types(types: dict, pkg: str) -> dict:
+    return {_theirs(t): (consts, [(f, _fix_ref(d, pkg)) for f, d in fields])
+            for t, (consts, fields) in types.items()}
+
+
+def _load(type_name: str) -> dict:
+    """rosbags typesdict for one installed type (msg text, else idl, else type description JSON)."""
+    pkg, kind, name = split_type(type_name)
+    full = f"{pkg}/{kind}/{name}"
+    text = _msg_text(pkg, kind, name)
+    if text is not None:
+        return _rosbags_types(get_types_from_msg(text, full), pkg)
+    idl = _find(pkg, kind, name + ".idl")
+    if idl is not None:
+        types = {_ours(t): v for t, v in get_types_from_idl(idl.read_text()).items()}
+        if full in types:
+            return _rosbags_types({full: types[full]}, pkg)
     fields = _description_fields(pkg, kind, name)
     if fields is not None:
-        return _fields_to_msg(fields)
+        return _rosbags_types(get_types_from_msg(_fields_to_msg(fields), full), pkg)
     raise BagError(f"no definition found for message type '{type_name}' under "
                    f"{[str(d) for d in share_dirs()]}", "UNKNOWN_TYPE")
 
 
-def nested_types(text: str, pkg: str) -> list[str]:
-    """Non-primitive field types referenced by one definition, as pkg/msg/Type (or pkg/kind/T)."""
-    out: list[str] = []
-    for raw in text.splitlines():
-        line = raw.split("#", 1)[0].strip()
-        if not line:
+def _refs(desc) -> list[str]:
+    kind, spec = desc
+    if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+        return _refs(spec[0])
+    return [_ours(spec)] if kind == Nodetype.NAME else []
+
+
+@functools.lru_cache(maxsize=None)
+def typestore(type_name: str):
+    """A rosbags Typestore holding `type_name` and every type it nests, from installed files."""
+    pkg, kind, name = split_type(type_name)
+    store = get_typestore(Stores.EMPTY)
+    pending, seen = [f"{pkg}/{kind}/{name}"], set()
+    while pending:
+        t = pending.pop()
+        if t in seen:
             continue
-        tokens = line.split()
-        if len(tokens) < 2 or "=" in tokens[0] or re.match(r"^\w+\s*=", " ".join(tokens[1:])):
-            continue  # constants (TYPE NAME=value) reference no types
-        base = re.sub(r"\[.*?\]$", "", tokens[0])
-        base = base.split("<=", 1)[0]
-        if base in PRIMITIVES or base in ("wchar",):
-            continue
-        if base == "Header":
-            full = "std_msgs/msg/Header"
-        elif "/" in base:
-            p, k, n = split_type(base)
-            full = f"{p}/{k}/{n}"
-        else:
-            full = f"{pkg}/msg/{base}"
-        if full not in out:
-            out.append(full)
-    return out
+        seen.add(t)
+        types = _load(t)
+        store.register(types)
+        for _, fields in types.values():
+            pending += [r for _, d in fields for r in _refs(d) if r not in seen]
+    return store
 
 
 @functools.lru_cache(maxsize=None)
 def schema_text(type_name: str) -> str:
-    """Full ros2msg schema: root definition, then every nested type once, depth-first."""
+    """Full ros2msg schema (rosbags' generate_msgdef over the installed definitions)."""
     pkg, kind, name = split_type(type_name)
-    root = definition(f"{pkg}/{kind}/{name}")
-    order: list[str] = []
-
-    def visit(text: str, owner_pkg: str) -> None:
-        for sub in nested_types(text, owner_pkg):
-            if sub not in order:
-                order.append(sub)
-                visit(definition(sub), split_type(sub)[0])
-
-    visit(root, pkg)
-    chunks = [root if root.endswith("\n") else root + "\n"]
-    for sub in order:
-        body = definition(sub)
-        chunks.append(f"{SEPARATOR}\nMSG: {short_name(sub)}\n{body if body.endswith(chr(10)) else body + chr(10)}")
-    return "".join(chunks)
+    full = f"{pkg}/{kind}/{name}"
+    try:
+        text, _ = typestore(full).generate_msgdef(_theirs(full), ros_version=2)
+    except BagError:
+        raise
+    except Exception as e:  # rosbags raises TypesysError and friends on a bad definition
+        raise BagError(f"cannot build the schema of '{type_name}': {type(e).__name__}: {e}",
+                       "BAD_SCHEMA") from None
+    return text
 
 
 @functools.lru_cache(maxsize=None)

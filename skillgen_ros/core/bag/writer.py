@@ -13,7 +13,7 @@ from __future__ import annotations
 import enum
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Mapping
 
@@ -21,6 +21,7 @@ import yaml
 from mcap.writer import CompressionType, Writer
 
 from skillgen_ros.core.bag import schemas
+from skillgen_ros.core.bag.qos import complete_profiles
 from skillgen_ros.core.errors import BagError
 
 METADATA_FILE = "metadata.yaml"
@@ -51,7 +52,8 @@ _MCAP_COMPRESSION = {Compression.NONE: CompressionType.NONE, Compression.ZSTD: C
 
 @dataclass(frozen=True)
 class TopicSpec:
-    """One recorded topic. qos_profiles: rosbag2 v9 QoS dicts of the publishers seen."""
+    """One recorded topic. qos_profiles: rosbag2 v9 QoS dicts of the publishers seen (the writer
+    completes each one with the defaults of core/bag/qos.py, so partial dicts are fine)."""
 
     name: str
     type: str
@@ -163,6 +165,7 @@ class BagWriter:
                                f"not {spec.type}", "TYPE_CONFLICT")
             return
         schemas.split_type(spec.type)
+        spec = replace(spec, qos_profiles=complete_profiles(spec.qos_profiles))
         if spec.type not in self._schema_text:
             self._schema_text[spec.type] = self._schema_lookup(spec.type)
         self._topics[spec.name] = spec
@@ -288,8 +291,10 @@ class BagWriter:
 
 
 def write_metadata(bag_dir: Path, s: BagSummary, topics: list[TopicSpec], compression: Compression,
-                   final: bool) -> None:
-    """Atomically (re)write a bag's rosbag2 metadata.yaml (version 9) from a summary."""
+                   final: bool, custom_data: Mapping[str, str] | None = None) -> None:
+    """Atomically (re)write a bag's rosbag2 metadata.yaml (version 9) from a summary.
+
+    custom_data: extra entries kept (bag reindex passes the old file's); ours win on a clash."""
     info = {
         "version": ROSBAG2_VERSION,
         "storage_identifier": "mcap",
@@ -300,7 +305,7 @@ def write_metadata(bag_dir: Path, s: BagSummary, topics: list[TopicSpec], compre
         "topics_with_message_count": [
             {"topic_metadata": {
                 "name": t.name, "type": t.type, "serialization_format": t.serialization_format,
-                "offered_qos_profiles": [dict(p) for p in t.qos_profiles],
+                "offered_qos_profiles": list(complete_profiles(t.qos_profiles)),
                 "type_description_hash": schemas.type_hash(t.type)},
              "message_count": s.topic_counts.get(t.name, 0)}
             for t in topics],
@@ -310,7 +315,7 @@ def write_metadata(bag_dir: Path, s: BagSummary, topics: list[TopicSpec], compre
         "files": [{"path": f.path, "starting_time": {"nanoseconds_since_epoch": f.start_ns},
                    "duration": {"nanoseconds": max(0, f.end_ns - f.start_ns)},
                    "message_count": f.message_count} for f in s.files],
-        "custom_data": {"skillgen.chunk_compression": compression.value,
+        "custom_data": {**dict(custom_data or {}), "skillgen.chunk_compression": compression.value,
                         "skillgen.finalized": "true" if final else "false"},
         "ros_distro": "jazzy",
     }

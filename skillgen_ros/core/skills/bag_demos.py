@@ -20,7 +20,7 @@ import numpy as np
 import yaml
 
 from ..bag.info import SIDECAR_ANNOTATIONS
-from ..bag.reader import BagReader
+from ..bag.reader import BagReader, schema_decoder
 from ..bag.writer import ANNOTATIONS_RECORD
 from ..errors import AnnotationError, BagError, SkillGenError
 from ..robot import ARM_JOINTS
@@ -63,9 +63,7 @@ def _norm_type(t: str) -> str:
 
 @functools.lru_cache(maxsize=32)
 def _decoder(schema_name: str, schema_text: str):
-    from mcap_ros2._dynamic import generate_dynamic
-
-    return generate_dynamic(schema_name, schema_text)[schema_name]
+    return schema_decoder(schema_name, schema_text)
 
 
 def open_bag(path) -> BagReader:
@@ -102,9 +100,9 @@ def _decode_all(reader: BagReader, topic: str) -> list[tuple[float, object]]:
     t = reader.topics[topic]
     if not t.schema_text:
         raise BagError(f"{reader.path}: topic '{topic}' has no schema to decode it with", "NO_SCHEMA")
-    dec = _decoder(t.type, t.schema_text)
     out = []
     try:
+        dec = _decoder(t.type, t.schema_text)
         for m in reader.messages([topic]):
             out.append((m.log_time_ns * 1e-9, dec(m.data)))
     except BagError as e:

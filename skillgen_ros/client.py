@@ -24,6 +24,7 @@ from rclpy.executors import SingleThreadedExecutor
 from skillgen_interfaces.action import Generate
 from skillgen_ros.answered import first_answer, sleep_until_done
 from skillgen_ros.core.errors import SkillGenError
+from skillgen_ros.core.validation import USE_DEFAULT
 
 
 class SkillGenClient:
@@ -63,6 +64,8 @@ class SkillGenClient:
         """Send a Generate goal (fields as in Generate.action); True if accepted."""
         if not self.wait_for_server(timeout):
             raise SkillGenError("the datagen node's 'generate' action is not available", reason="NO_SERVER")
+        for k in ("augment_translation", "augment_rotation_deg"):  # unset: the node's default, not 0
+            fields.setdefault(k, USE_DEFAULT)
         goal = Generate.Goal(**fields)
         fut = self.client.send_goal_async(goal, feedback_callback=self._on_feedback)
         end = time.monotonic() + timeout

@@ -18,6 +18,7 @@ import sys
 import time
 
 from skillgen_ros.core.errors import SkillGenError
+from skillgen_ros.core.validation import USE_DEFAULT
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -130,10 +131,13 @@ def run_graph(a) -> int:
     from skillgen_ros.cli.launcher import graph_client
     from skillgen_ros.client import SkillGenClient
 
-    with graph_client("datagen", SkillGenClient, "datagen 'generate'", a.startup_timeout) as (graph, client):
+    # datagen and the recorder write only under their roots; an explicit --output is the user's choice
+    roots = ["--ros-args", "-p", f"writable_roots:=['{os.path.abspath(a.output)}']"] if a.output else []
+    with graph_client("datagen", SkillGenClient, "datagen 'generate'", a.startup_timeout,
+                      ros_args=roots) as (graph, client):
         ok = client.generate(task=a.task, variant=a.variant, method=a.method, attempts=a.attempts,
                              target_successes=a.target_successes, seed=a.seed, first_index=a.first_index,
-                             augment=a.augment, augment_translation=0.08, augment_rotation_deg=80.0,
+                             augment=a.augment, augment_translation=USE_DEFAULT, augment_rotation_deg=USE_DEFAULT,
                              selection=a.selection, source_demos=a.source_demos, output_dir=_output(a),
                              record_bag=not a.no_bag, record_first=_window(a.record)[0],
                              record_count=_window(a.record)[1], video_attempts=a.video_attempts,

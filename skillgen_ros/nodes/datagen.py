@@ -19,6 +19,7 @@ from __future__ import annotations
 import os
 import sys
 import threading
+import traceback
 from pathlib import Path
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -33,11 +34,15 @@ from skillgen_ros.core.generation.profile import DEFAULT_PROFILE, get_profile
 from skillgen_ros.core.generation.episode import OBSERVATION_SOURCES
 from skillgen_ros.core.generation.release import ReleaseConfig
 from skillgen_ros.core.generation.session import RunRequest, run_generation, validate_request
+from skillgen_ros.core import validation as V
+from skillgen_ros.core.skills.augmentation import MAX_TRANSLATION, AugmentationConfig
 from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
 from skillgen_ros.core.tasks import TASK_NAMES, get_task
+from skillgen_ros.core.tasks.spec import MAX_SEED
 from skillgen_ros.nodes.graph_env import RosGraphEnv
 from skillgen_ros.nodes.runtime import run_node
 
+MAX_ATTEMPTS = 1_000_000  # per goal; a larger count is a typo, not a run
 TIMEOUTS = {"reset": 30.0, "perception": 20.0, "plan": 10.0, "execute": 60.0, "skill": 120.0, "state": 10.0}
 # release.* parameters: `moves` switches unjam/follow/clear off; the rest are ReleaseConfig's fields
 _RELEASE_PARAMS = {"moves": True, **{f: getattr(ReleaseConfig(), f) for f in ReleaseConfig.__dataclass_fields__}}
@@ -48,6 +53,7 @@ class DatagenNode(Node):
         super().__init__("datagen")
         self.declare_parameter("demos_dir", "bags")
         self.declare_parameter("output_root", "out")
+        self.declare_parameter("writable_roots", [""])
         self.declare_parameter("collision_source", "scene")
         self.declare_parameter("action_noise", 0.05)
         self.declare_parameter("profile", DEFAULT_PROFILE)
@@ -71,8 +77,15 @@ class DatagenNode(Node):
         except InvalidInputError as e:
             raise ParameterError(f"profile: {e}") from None
         timeouts = {k: float(self.get_parameter(f"timeout_{k}").value) for k in TIMEOUTS}
-        if any(v <= 0 for v in timeouts.values()):
-            raise ParameterError(f"timeouts must be > 0, got {timeouts}")
+        if not all(0 < v < float("inf") for v in timeouts.values()):
+            raise ParameterError(f"timeouts must be finite and > 0, got {timeouts}")
+        try:
+            V.finite("action_noise", self.get_parameter("action_noise").value, 0.0, 1.0)
+            V.finite("video_camera_hz", self.get_parameter("video_camera_hz").value, 0.0, 1000.0, lo_open=True)
+        except InvalidInputError as e:
+            raise ParameterError(str(e.args[0])) from None
+        self._writable = [str(self.get_parameter("output_root").value),
+                          *(r for r in self.get_parameter("writable_roots").value if r)]
         self.env = RosGraphEnv(self, timeouts, demos_dir="",
                                collision_source=PlanToPose.Request.SOURCE_POINT_CLOUD if src == "point_cloud"
                                else PlanToPose.Request.SOURCE_SCENE,
@@ -103,14 +116,32 @@ class DatagenNode(Node):
 
     # -- request handling
     def _request(self, g) -> RunRequest:
+        """The goal (or RunAttempt request) as a RunRequest, every field checked first (reason codes)."""
+        for label in ("task", "variant", "method", "selection", "profile"):
+            V.name(label, getattr(g, label, ""), allow_empty=True)
+        attempts = int(getattr(g, "attempts", 1))
+        if attempts > MAX_ATTEMPTS:
+            raise InvalidInputError(f"attempts must be <= {MAX_ATTEMPTS}, got {attempts}", reason="INVALID_ATTEMPTS")
+        if int(g.seed) > MAX_SEED:
+            raise InvalidInputError(f"seed must be in [0, {MAX_SEED}], got {g.seed}", reason="INVALID_SEED")
+        if int(getattr(g, "video_attempts", -1)) < -1:
+            raise InvalidInputError(f"video_attempts must be -1 (default), 0 or more, got {g.video_attempts}",
+                                    reason="INVALID_PARAMETER")
+        default = AugmentationConfig()
         out = g.output_dir or os.path.join(str(self.get_parameter("output_root").value),
                                            f"{g.task}_{g.variant}_{g.method}_seed{g.seed}")
+        V.writable_path("output_dir", out, self._writable)
+        if g.source_demos and len(g.source_demos) > V.MAX_PATH:
+            raise InvalidInputError("source_demos is longer than a path can be", reason="INVALID_PATH")
         return RunRequest(task=g.task, variant=g.variant or "D0", method=g.method or "skillgen",
-                          attempts=int(getattr(g, "attempts", 1)), target_successes=int(getattr(g, "target_successes", 0)),
+                          attempts=attempts, target_successes=int(getattr(g, "target_successes", 0)),
                           seed=int(g.seed), first_index=int(getattr(g, "first_index", getattr(g, "index", 0))),
                           augment=bool(g.augment),
-                          augment_translation=float(g.augment_translation or 0.08),
-                          augment_rotation_deg=float(g.augment_rotation_deg or 80.0),
+                          # negative = the default (V.USE_DEFAULT, documented in Generate.action); 0 is 0
+                          augment_translation=V.or_default("augment_translation", g.augment_translation,
+                                                           default.translation, MAX_TRANSLATION),
+                          augment_rotation_deg=V.or_default("augment_rotation_deg", g.augment_rotation_deg,
+                                                            default.rotation_deg, 180.0),
                           action_noise=float(self.get_parameter("action_noise").value),
                           release=self._release, observation_source=self._observation_source,
                           profile=getattr(g, "profile", "") or self._profile,
@@ -157,6 +188,11 @@ class DatagenNode(Node):
             self.get_logger().error(f"generate rejected: {e}")
             goal_handle.abort()
             return res
+        except Exception as e:  # noqa: BLE001 -- a bug must answer with a reason, not kill the goal
+            res.accepted, res.reason, res.message = False, "INTERNAL_ERROR", f"{type(e).__name__}: {e}"
+            self.get_logger().error(f"generate failed before the run: {traceback.format_exc()}")
+            goal_handle.abort()
+            return res
         res.accepted = True
         bag = self._start_bag(req) if g.record_bag else ""
 
@@ -183,6 +219,10 @@ class DatagenNode(Node):
             run = None
             res.reason, res.message = e.reason, f"run ended early: {e.args[0]}"
             self.get_logger().error(res.message)
+        except Exception as e:  # noqa: BLE001 -- a bug mid-run: the written demos stay, the goal answers
+            run = None
+            res.reason, res.message = "INTERNAL_ERROR", f"run ended early: {type(e).__name__}: {e}"
+            self.get_logger().error(f"generate failed mid-run: {traceback.format_exc()}")
         finally:
             if bag:
                 self._stop_bag()
@@ -213,6 +253,9 @@ class DatagenNode(Node):
             response.reason, response.message, response.seconds = r.reason.value, r.message, r.timings.get("total", 0.0)
         except SkillGenError as e:
             response.accepted, response.reason, response.message = False, e.reason, str(e.args[0])
+        except Exception as e:  # noqa: BLE001 -- answer with a reason, keep serving
+            self.get_logger().error(f"run_attempt failed: {traceback.format_exc()}")
+            response.accepted, response.reason, response.message = False, "INTERNAL_ERROR", f"{type(e).__name__}: {e}"
         finally:
             self._busy.release()
         return response

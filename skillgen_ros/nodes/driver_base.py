@@ -39,6 +39,7 @@ from geometry_msgs.msg import PoseStamped
 from skillgen_interfaces.action import ExecuteTrajectory, Gripper
 from skillgen_interfaces.msg import GripperState, ObjectPose, ObjectPoseArray, OscTarget, SceneObject
 from skillgen_interfaces.srv import CaptureCameras, ResetScene, StateHistory, TaskSuccess
+from skillgen_ros.core import validation as V
 from skillgen_ros.core.errors import ParameterError, SkillGenError
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
@@ -73,6 +74,7 @@ PARAMS = {  # name: (default, description)
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 GRIPPER_WAIT_S = 1.5
+MAX_TRAJECTORY_POINTS = 200_000  # about an hour at 50 Hz: more is a mistake, not a motion
 
 
 class DriverNode(Node):
@@ -90,11 +92,16 @@ class DriverNode(Node):
         # hot path, which a thread-pool handoff per message slows by about a third.
         # Real time: actions pace themselves with sleeps, so other callbacks need other threads.
         self.executor_kind = "single" if self.mode == "lockstep" else "multi"
-        self.hz = float(self.param("control_hz"))
-        if not self.hz > 0:
-            raise ParameterError("control_hz must be > 0")
-        if not float(self.param("lockstep_timeout_s")) > 0:
-            raise ParameterError("lockstep_timeout_s must be > 0")
+        try:  # finite and in range (NaN and inf fail these checks)
+            self.hz = V.finite("control_hz", self.param("control_hz"), 0.0, 10_000.0, lo_open=True)
+            V.finite("lockstep_timeout_s", self.param("lockstep_timeout_s"), 0.0, 3600.0, lo_open=True)
+            V.finite("feedback_hz", self.param("feedback_hz"), 0.0, 10_000.0, lo_open=True)
+            V.finite("camera_hz", self.param("camera_hz"), 0.0, 10_000.0)
+            for k in ("depth_noise_base", "depth_noise_quadratic"):
+                V.finite(k, self.param(k), 0.0, 1.0)
+            V.finite("depth_dropout", self.param("depth_dropout"), 0.0, 1.0)
+        except SkillGenError as e:
+            raise ParameterError(str(e.args[0])) from None
         self.frame = self.param("frame_id")
         self.world = make_world(self.param)
         self.lock = threading.RLock()
@@ -166,9 +173,9 @@ class DriverNode(Node):
             try:
                 if p.name == "camera_hz":
                     every = self.cameras.periods_per_frame(p.value)
-                elif p.name in ("lockstep_timeout_s", "feedback_hz") and not float(p.value) > 0:
-                    raise ParameterError(f"{p.name} must be > 0, got {p.value}")
-            except (ParameterError, TypeError, ValueError) as e:
+                elif p.name in ("lockstep_timeout_s", "feedback_hz"):
+                    V.finite(p.name, p.value, 0.0, 10_000.0, lo_open=True)
+            except (SkillGenError, TypeError, ValueError) as e:
                 return SetParametersResult(successful=False, reason=str(e))
         if every is not None:
             self.cameras.every = every
@@ -271,6 +278,8 @@ class DriverNode(Node):
     # ----------------------------------------------------------------- services
     def _on_reset(self, req: ResetScene.Request, res: ResetScene.Response) -> ResetScene.Response:
         try:
+            V.name("task", req.task, reason="UNKNOWN_TASK")
+            V.name("variant", req.variant, reason="UNKNOWN_VARIANT")
             with self.lock:
                 base = self._clock_base + self.world.time + 1.0 / self.hz
                 scene = self.world.reset(req.task, req.variant, int(req.seed))
@@ -283,6 +292,7 @@ class DriverNode(Node):
             self._report(e)
             return res
         except Exception as e:  # noqa: BLE001 - report, keep serving
+            self.get_logger().error(f"reset_scene failed: {e!r}")
             res.success, res.reason_code, res.message = False, "INTERNAL_ERROR", repr(e)
             return res
         res.success, res.reason_code, res.message = True, "OK", f"{req.task}/{req.variant} seed {req.seed}"
@@ -347,10 +357,14 @@ class DriverNode(Node):
 
     def _exec_traj(self, handle) -> ExecuteTrajectory.Result:
         result = ExecuteTrajectory.Result()
-        names, times, pos, vel = convert.trajectory_from_msg(handle.request.trajectory)
         try:
+            tol = V.finite("goal_tolerance", handle.request.goal_tolerance)  # <= 0: the default; NaN refused
+            if len(handle.request.trajectory.points) > MAX_TRAJECTORY_POINTS:
+                raise SkillGenError(f"{len(handle.request.trajectory.points)} trajectory points; at most "
+                                    f"{MAX_TRAJECTORY_POINTS} are accepted", "INVALID_GOAL")
+            names, times, pos, vel = convert.trajectory_from_msg(handle.request.trajectory)
             with self.lock:
-                self.world.start_trajectory(names, times, pos, vel, handle.request.goal_tolerance)
+                self.world.start_trajectory(names, times, pos, vel, tol)
                 self.busy = True
         except TrajectoryError as e:
             self._report(e)
@@ -361,6 +375,10 @@ class DriverNode(Node):
             self._report(e)
             handle.abort()
             result.error_code, result.error_string = int(TrajectoryCode.INVALID_GOAL), str(e)
+            return result
+        except (ValueError, TypeError) as e:  # ragged point arrays in the message
+            handle.abort()
+            result.error_code, result.error_string = int(TrajectoryCode.INVALID_GOAL), f"INVALID_GOAL: {e}"
             return result
         t0, k, fb = time.monotonic(), 0, ExecuteTrajectory.Feedback()
         feedback = FeedbackThrottle(float(self.param("feedback_hz")))
@@ -397,6 +415,8 @@ class DriverNode(Node):
     def _exec_gripper(self, handle) -> Gripper.Result:
         result, g = Gripper.Result(), handle.request
         try:
+            V.finite("gripper position", g.position, reason="INVALID_GOAL")  # out of range: clamped below
+            V.finite("gripper max_effort", g.max_effort, reason="INVALID_GOAL")  # <= 0: the default 20 N
             with self.lock:
                 self.world.gripper_to(g.position, g.max_effort if g.max_effort > 0 else 20.0)
                 self.busy = True

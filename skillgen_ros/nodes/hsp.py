@@ -20,6 +20,7 @@ import json
 import os
 import sys
 import threading
+import traceback
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
@@ -30,13 +31,17 @@ from skillgen_interfaces.srv import PlanToPose
 from skillgen_ros.core.deploy import DeployConfig, run_rollout
 from skillgen_ros.core.deploy.initiation import MODES, check_mode
 from skillgen_ros.core.deploy.loading import load_policy
-from skillgen_ros.core.errors import ParameterError, SkillGenError
+from skillgen_ros.core import validation as V
+from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
 from skillgen_ros.core.tasks import get_task
 from skillgen_ros.nodes.feedback import FeedbackThrottle
 from skillgen_ros.nodes.hsp_env import HspGraphEnv
 from skillgen_ros.nodes.runtime import run_node
 
 TIMEOUTS = {"reset": 30.0, "perception": 20.0, "plan": 10.0, "execute": 60.0, "skill": 120.0, "state": 10.0}
+
+
+MAX_STEPS = 100_000  # control steps per rollout (about 80 minutes at 20 Hz)
 
 
 class HspNode(Node):
@@ -61,8 +66,9 @@ class HspNode(Node):
         except SkillGenError as e:
             raise ParameterError(str(e.args[0])) from None
         timeouts = {k: float(p[f"timeout_{k}"]) for k in TIMEOUTS}
-        if any(v <= 0 for v in timeouts.values()) or int(p["torch_threads"]) < 1:
-            raise ParameterError(f"timeouts must be > 0 and torch_threads >= 1, got {timeouts}, {p['torch_threads']}")
+        if not all(0 < v < float("inf") for v in timeouts.values()) or int(p["torch_threads"]) < 1 \
+                or not 0 < float(p["feedback_hz"]) < float("inf"):
+            raise ParameterError(f"timeouts and feedback_hz must be finite and > 0, torch_threads >= 1, got {timeouts}, {p['torch_threads']}")
         import torch
 
         torch.set_num_threads(int(p["torch_threads"]))  # one core per policy step; the same sums as in-process
@@ -89,6 +95,10 @@ class HspNode(Node):
     def _execute(self, handle):
         try:
             return self._run(handle)
+        except Exception as e:  # noqa: BLE001 -- a bug answers with a reason; the node keeps serving
+            self.get_logger().error(f"run_task failed: {traceback.format_exc()}")
+            handle.abort()
+            return RunTask.Result(success=False, reason="INTERNAL_ERROR", message=f"{type(e).__name__}: {e}")
         finally:
             self._busy.release()
 
@@ -104,6 +114,14 @@ class HspNode(Node):
         res = RunTask.Result()
         mode = g.initiation_mode or self.defaults.mode
         try:
+            V.name("task", g.task)
+            V.name("variant", g.variant, allow_empty=True)
+            V.name("initiation_mode", mode)
+            if not g.checkpoint or len(g.checkpoint) > V.MAX_PATH:
+                raise InvalidInputError("checkpoint must be a path of at most "
+                                        f"{V.MAX_PATH} characters", reason="BAD_CHECKPOINT")
+            if int(g.max_steps) > MAX_STEPS:
+                raise InvalidInputError(f"max_steps must be <= {MAX_STEPS}, got {g.max_steps}", reason="INVALID_PARAMETER")
             spec = get_task(g.task)
             check_mode(mode)
             policy, demos = self._policy(g.checkpoint, g.task, mode)

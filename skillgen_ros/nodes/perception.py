@@ -36,7 +36,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from skillgen_interfaces.msg import ObjectPose, ObjectPoseArray, PhaseTiming
 from skillgen_interfaces.srv import EstimatePoses
-from skillgen_ros.core.errors import ParameterError, SkillGenError
+from skillgen_ros.core import validation as V
+from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
 from skillgen_ros.core.perception.models import models_for_objects
 from skillgen_ros.core.perception.pipeline import (EstimatedPose, PerceptionParams, PerceptionStatus,
                                                    estimate_poses)
@@ -106,14 +107,23 @@ class PerceptionNode(Node):
         if mode not in MODES:
             raise ParameterError(f"mode must be one of {MODES}, got {mode!r}")
         cam = list(g("camera_position") or [])
-        if cam and len(cam) != 3:
-            raise ParameterError("camera_position must have 3 values or be empty")
         lo, hi = list(g("workspace_lo")), list(g("workspace_hi"))
-        if len(lo) != 3 or len(hi) != 3 or not all(a < b for a, b in zip(lo, hi)):
-            raise ParameterError(f"workspace_lo {lo} / workspace_hi {hi}: need 3 values each with lo < hi")
-        for name in ("voxel", "table_distance", "dbscan_eps", "inlier_distance", "obstacle_voxel"):
-            if not g(name) > 0:
-                raise ParameterError(f"{name} must be > 0, got {g(name)}")
+        try:  # every number finite and in range (NaN fails each check)
+            if cam:
+                V.finite_array("camera_position", cam, length=3)
+            V.finite_array("workspace_lo", lo, length=3)
+            V.finite_array("workspace_hi", hi, length=3)
+            if not all(a < b for a, b in zip(lo, hi)):
+                raise InvalidInputError(f"workspace_lo {lo} / workspace_hi {hi}: need lo < hi per axis")
+            for name in ("voxel", "table_distance", "dbscan_eps", "inlier_distance", "obstacle_voxel"):
+                V.finite(name, g(name), 0.0, 1.0, lo_open=True)
+            V.finite("min_object_height", g("min_object_height"), 0.0, 1.0)
+            V.finite("max_cloud_age", g("max_cloud_age"), 0.0)
+            V.finite("accept_score", g("accept_score"), 0.0, 1.0)
+            for name in ("dbscan_min_points", "min_cluster_points", "yaw_steps"):
+                V.finite(name, g(name), 1, 1_000_000)
+        except InvalidInputError as e:
+            raise ParameterError(str(e.args[0])) from None
         self.mode = mode
         self.world_frame = g("world_frame")
         self.camera = np.array(cam, float) if cam else None
@@ -201,6 +211,10 @@ class PerceptionNode(Node):
         return self._front.wait_for(lambda m: m is not None and Time.from_msg(m.header.stamp) >= floor, wait)
 
     def _estimate(self, object_ids: list[str], newer_than=None):
+        if len(object_ids) > V.MAX_ITEMS or any(not i or len(i) > V.MAX_NAME for i in object_ids):
+            # EstimatePoses has no INVALID_REQUEST status; a name no task can have is a missing object
+            return (S.OBJECT_MISSING, f"object_ids must be at most {V.MAX_ITEMS} non-empty names of at most "
+                    f"{V.MAX_NAME} characters", {}, np.zeros((0, 3)), {})
         with self._lock:
             models, truth, task, camera = dict(self._models), self._truth, self._task, self.camera
         pose = self._camera_pose.latest()

@@ -31,7 +31,6 @@ client in a reentrant group, so clouds keep updating while a request plans or ex
 """
 from __future__ import annotations
 
-import math
 import sys
 import time
 import traceback
@@ -55,7 +54,8 @@ from skillgen_ros.core.planning.collision import AttachedObject, Box, CollisionM
 from skillgen_ros.core.planning.ik import IKSolver
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.planning.planner import Mode, MotionPlanner, PlanStatus
-from skillgen_ros.core.robot import ARM_JOINTS
+from skillgen_ros.core import validation as V
+from skillgen_ros.core.robot import ARM_JOINTS, Q_LOWER, Q_UPPER
 from skillgen_ros.nodes import convert
 from skillgen_ros.nodes.latest import LatestMessage, wait_future
 from skillgen_ros.nodes.runtime import run_node
@@ -80,15 +80,30 @@ PARAMS = {  # name: (default, description)
 }
 
 
+MAX_TIMEOUT = 600.0     # s: the longest planning budget a request may ask for
+MAX_OBJECTS = 512       # scene objects per request
+JOINT_SLACK = 1e-3      # rad: start configurations this far past a limit are still accepted
+
+
 def scene_boxes(objects) -> dict[str, Box]:
-    """SceneObject[] -> {id: Box}; objects without a pose or half extents are skipped."""
+    """SceneObject[] -> {id: Box}; objects without a pose or half extents are skipped. Ids must be
+    unique names, poses and half extents finite (half extents >= 0) and within V.MAX_REACH."""
+    if len(objects) > MAX_OBJECTS:
+        raise InvalidInputError(f"{len(objects)} scene objects; at most {MAX_OBJECTS} are accepted")
     out = {}
     for o in objects:
+        oid = V.name("object id", o.id, reason="INVALID_REQUEST")
+        if oid in out:
+            raise InvalidInputError(f"object id {oid!r} appears twice")
         if not o.has_pose or len(o.half_extents) != 3:
             continue
         p, q = convert.pose_arrays_from_msg(o.pose)
         pose = validate_pose(p, q, f"object {o.id}")
-        out[o.id] = Box(o.id, pose.matrix(), np.asarray(o.half_extents, float))
+        V.finite(f"object {oid} distance from the base", np.linalg.norm(pose.position), 0.0, V.MAX_REACH)
+        half = V.finite_array(f"object {oid} half_extents", o.half_extents, length=3)
+        if np.any(half < 0) or np.any(half > V.MAX_REACH):
+            raise InvalidInputError(f"object {oid}: half_extents must be in [0, {V.MAX_REACH}] m, got {half.tolist()}")
+        out[oid] = Box(oid, pose.matrix(), half)
     return out
 
 
@@ -98,8 +113,14 @@ class PlannerNode(Node):
         for name, (default, desc) in PARAMS.items():
             self.declare_parameter(name, default, ParameterDescriptor(description=desc))
         p = {n: self.get_parameter(n).value for n in PARAMS}
-        if p["velocity_scale"] <= 0 or p["velocity_scale"] > 1 or p["dt"] <= 0:
-            raise ParameterError("velocity_scale must be in (0, 1] and dt > 0")
+        try:  # every number finite; NaN fails these checks too
+            V.finite("velocity_scale", p["velocity_scale"], 0.0, 1.0, lo_open=True)
+            for k in ("default_timeout", "dt", "execute_timeout", "ik_timeout"):
+                V.finite(k, p[k], 0.0, MAX_TIMEOUT, lo_open=True)
+            for k in ("retreat_distance", "approach_distance", "box_margin", "cloud_margin"):
+                V.finite(k, p[k], 0.0, 1.0)
+        except InvalidInputError as e:
+            raise ParameterError(str(e.args[0])) from None
         self.p = p
         seed = int(p["seed"]) or None
         self.kin = PandaKinematics()
@@ -198,18 +219,20 @@ class PlannerNode(Node):
             raise InvalidInputError(f"target frame {t!r} unsupported (use world)")
         p, q = convert.pose_arrays_from_msg(req.target.pose)
         target = validate_pose(p, q, "target")
+        V.finite("target distance from the base", np.linalg.norm(target.position), 0.0, V.MAX_REACH)
+        for label in ("attached_object", "manipulated_object"):
+            V.name(label, getattr(req, label), allow_empty=True)
         if req.mode not in (PlanToPose.Request.TRANSIT, PlanToPose.Request.TRANSFER):
             raise InvalidInputError(f"unknown mode {req.mode}")
         if req.collision_source not in (PlanToPose.Request.SOURCE_SCENE,
                                         PlanToPose.Request.SOURCE_POINT_CLOUD):
             raise InvalidInputError(f"unknown collision_source {req.collision_source}")
-        timeout = req.timeout if req.timeout > 0 else self.p["default_timeout"]
-        if not math.isfinite(timeout):
-            raise InvalidInputError("timeout is not finite")
+        timeout = V.finite("timeout", req.timeout, hi=MAX_TIMEOUT)  # NaN/inf refused, not defaulted
+        timeout = timeout if timeout > 0 else self.p["default_timeout"]  # <= 0: the default (srv)
         if len(req.start_positions):
-            q0 = np.asarray(req.start_positions, float)
-            if q0.shape != (7,) or not np.all(np.isfinite(q0)):
-                raise InvalidInputError("start_positions must be 7 finite values")
+            q0 = V.finite_array("start_positions", req.start_positions, length=7, reason="INVALID_REQUEST")
+            if np.any(q0 < Q_LOWER - JOINT_SLACK) or np.any(q0 > Q_UPPER + JOINT_SLACK):
+                raise InvalidInputError(f"start_positions {np.round(q0, 4).tolist()} are outside the joint limits")
         else:
             q0 = self._current_q()
             if q0 is None:
@@ -232,6 +255,8 @@ class PlannerNode(Node):
             self.cm.set_point_cloud(self._cloud(), self_filter_q=q0, attached=attached,
                                     fill_below=bool(self.p["cloud_fill_below"]))
         manipulated = req.manipulated_object or None
+        if manipulated is not None and manipulated not in boxes:
+            raise InvalidInputError(f"manipulated object {manipulated!r} not in the scene")
         released = _containing(obstacles, T0[:3, 3])
         start_support = goal_support = "table"
         if attached is not None:

@@ -29,6 +29,7 @@ from rclpy.node import Node
 from skillgen_interfaces.srv import Recorder as RecorderSrv
 from skillgen_ros.core.bag.reader import message_class
 from skillgen_ros.core.bag.writer import BagWriter, Compression, TopicSpec, WriterOptions
+from skillgen_ros.core import validation as V
 from skillgen_ros.core.errors import BagError, ParameterError, SkillGenError
 from skillgen_ros.nodes.bag_qos import qos_to_dict, subscription_qos
 from skillgen_ros.nodes.runtime import run_node
@@ -114,6 +115,8 @@ class Recorder(Node):
         self.declare_parameter("discovery_period", 0.5, d(description="s between graph polls"))
         self.declare_parameter("queue_depth", 1000, d(description="subscription history depth (absorbs stalls)"))
         self.declare_parameter("max_queue_bytes", 1 << 30, d(description="writer backlog cap; beyond it messages drop"))
+        self.declare_parameter("writable_roots", [""], d(description="extra directories a recorder/start output may "
+                                                                     "lie under (the working and temp dirs always)"))
         p = {n: self.get_parameter(n).value for n in (
             "output", "topics", "all_topics", "exclude", "include_hidden", "max_bag_size", "compression",
             "chunk_size", "max_chunk_age", "autostart", "discovery_period", "queue_depth", "max_queue_bytes")}
@@ -121,9 +124,16 @@ class Recorder(Node):
             compression = Compression.parse(p["compression"])
         except BagError as e:
             raise ParameterError(str(e)) from None
-        if p["max_bag_size"] < 0 or p["chunk_size"] <= 0 or p["discovery_period"] <= 0 or p["queue_depth"] <= 0:
-            raise ParameterError("max_bag_size >= 0, chunk_size > 0, discovery_period > 0 and queue_depth > 0 "
-                                 "are required")
+        if p["max_bag_size"] < 0 or p["chunk_size"] <= 0 or p["queue_depth"] <= 0:
+            raise ParameterError("max_bag_size >= 0, chunk_size > 0 and queue_depth > 0 are required")
+        try:  # NaN and inf fail these
+            V.finite("discovery_period", p["discovery_period"], 0.0, 3600.0, lo_open=True)
+            V.finite("max_chunk_age", p["max_chunk_age"], 0.0, 3600.0, lo_open=True)
+        except SkillGenError as e:
+            raise ParameterError(str(e.args[0])) from None
+        self._roots = [r for r in self.get_parameter("writable_roots").value if r]
+        if p["output"]:
+            self._roots.append(str(Path(p["output"]).resolve().parent))
         self._options = WriterOptions(compression=compression, chunk_size=int(p["chunk_size"]),
                                       max_file_size=int(p["max_bag_size"]),
                                       max_chunk_age_s=float(p["max_chunk_age"]))
@@ -163,14 +173,28 @@ class Recorder(Node):
             raise
 
     # -- control ----------------------------------------------------------------------------
+    def _checked(self, output: str, topics: list[str]) -> list[str]:
+        """A start request's output (under the writable roots) and topics (valid names), resolved."""
+        if output:
+            V.writable_path("output", output, self._roots)
+        V.names("topics", topics, allow_empty=True, reason="INVALID_TOPIC")
+        try:
+            return [self.resolve_topic_name(t) for t in topics if t]
+        except Exception as e:  # noqa: BLE001 -- rclpy's InvalidTopicNameException and friends
+            raise BagError(f"invalid topic name in {topics[:8]}: {e}", "INVALID_TOPIC") from None
+
     def start(self, output: str = "", topics: list[str] | None = None) -> tuple[bool, str]:
+        try:
+            resolved = self._checked(output, list(topics or []))
+        except SkillGenError as e:
+            return False, str(e)
         with self._lock:
             if self._state != State.IDLE:
-                return False, f"already {self._state.value} to {self._bag_path}"
-            if topics:
-                self._topics = [self.resolve_topic_name(t) for t in topics if t]
+                return False, f"BUSY: already {self._state.value} to {self._bag_path}"
+            if resolved:
+                self._topics = resolved
             if not self._topics and not self._all:
-                return False, "no topics to record: set 'topics' or 'all_topics'"
+                return False, "NO_TOPICS: no topics to record: set 'topics' or 'all_topics'"
             stamp = datetime.now(timezone.utc).strftime("rec_%Y%m%d_%H%M%S_%f")
             path = Path(output or self._output or str(Path("bags") / stamp))
             try:
@@ -190,7 +214,7 @@ class Recorder(Node):
     def stop(self) -> tuple[bool, str]:
         with self._lock:
             if self._state == State.IDLE or self._writer is None:
-                return False, "not recording"
+                return False, "NOT_RECORDING: not recording"
             writer, self._writer = self._writer, None
             self._state = State.IDLE
         summary = writer.close()
@@ -206,7 +230,7 @@ class Recorder(Node):
         with self._lock:
             want_from = State.RECORDING if paused else State.PAUSED
             if self._state != want_from:
-                return False, f"cannot {'pause' if paused else 'resume'} while {self._state.value}"
+                return False, f"BAD_STATE: cannot {'pause' if paused else 'resume'} while {self._state.value}"
             self._state = State.PAUSED if paused else State.RECORDING
         return True, self._state.value
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import sys
 import time
+import traceback
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +36,8 @@ from sensor_msgs.msg import JointState
 from skillgen_interfaces.action import ReplaySkill
 from skillgen_interfaces.msg import OscTarget
 from skillgen_interfaces.srv import LoadDemos
-from skillgen_ros.core.errors import SkillGenError
+from skillgen_ros.core import validation as V
+from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
 from skillgen_ros.core.geometry import Pose, validate_pose
 from skillgen_ros.core.generation.selection import make_strategy
 from skillgen_ros.core.planning.kinematics import PandaKinematics
@@ -50,6 +52,9 @@ from skillgen_ros.nodes.feedback import FeedbackThrottle
 from skillgen_ros.nodes.runtime import run_node
 
 
+MAX_ACTION_NOISE = 1.0  # sigma on normalized actions; beyond it a replay is noise, not the skill
+
+
 class SkillReplayNode(Node):
     def __init__(self):
         super().__init__("skill_replay")
@@ -59,6 +64,12 @@ class SkillReplayNode(Node):
         self.declare_parameter("step_timeout", 5.0)
         self.declare_parameter("frame_id", "world")
         self.declare_parameter("feedback_hz", 20.0)
+        try:
+            V.finite("action_noise", self.get_parameter("action_noise").value, 0.0, MAX_ACTION_NOISE)
+            V.finite("step_timeout", self.get_parameter("step_timeout").value, 0.0, 3600.0, lo_open=True)
+            V.finite("feedback_hz", self.get_parameter("feedback_hz").value, 0.0, 1000.0, lo_open=True)
+        except InvalidInputError as e:
+            raise ParameterError(str(e.args[0])) from None
         self._demos: dict[tuple[str, str], list] = {}
         self._kin = PandaKinematics()
         self._state: JointState | None = None  # newest joint_states with every arm joint
@@ -129,6 +140,9 @@ class SkillReplayNode(Node):
 
     def _on_load_demos(self, req: LoadDemos.Request, res: LoadDemos.Response) -> LoadDemos.Response:
         try:
+            get_task(V.name("task", req.task))
+            if len(req.source_demos) > V.MAX_PATH:
+                raise InvalidInputError("source_demos is longer than a path can be", reason="INVALID_PATH")
             res.demos = len(self.demos_for(req.task, req.source_demos))
         except SkillGenError as e:
             res.success, res.reason_code, res.message = False, e.reason, str(e.args[0])
@@ -140,6 +154,10 @@ class SkillReplayNode(Node):
         self._busy = True
         try:
             return await self._replay(goal_handle)
+        except Exception as e:  # noqa: BLE001 -- a bug answers with a reason; the node keeps serving
+            self.get_logger().error(f"replay_skill failed: {traceback.format_exc()}")
+            goal_handle.abort()
+            return ReplaySkill.Result(success=False, reason="INTERNAL_ERROR", message=f"{type(e).__name__}: {e}")
         finally:
             self._busy = False
 
@@ -156,8 +174,17 @@ class SkillReplayNode(Node):
             return res
 
         try:
-            demos = self.demos_for(g.task, g.source_demos)
+            get_task(V.name("task", g.task))  # UNKNOWN_TASK before any file is looked for
+            V.name("selection", g.selection, allow_empty=True)
+            if len(g.source_demos) > V.MAX_PATH:
+                raise InvalidInputError("source_demos is longer than a path can be", reason="INVALID_PATH")
+            # negative = the node's action_noise (ReplaySkill.action); NaN/inf refused, not defaulted
+            sigma = V.or_default("action_noise", g.action_noise, float(self.get_parameter("action_noise").value),
+                                 MAX_ACTION_NOISE)
             obj = validate_pose(*convert.pose_arrays_from_msg(g.object_pose), "object_pose")
+            V.finite("object_pose distance from the base", np.linalg.norm(obj.position), 0.0, V.MAX_REACH,
+                     reason="INVALID_POSE")
+            demos = self.demos_for(g.task, g.source_demos)
             T_W_O = obj.matrix()
             rng = np.random.default_rng(int(g.seed))
             if g.source_demo >= 0:
@@ -170,7 +197,6 @@ class SkillReplayNode(Node):
         except SkillGenError as e:
             return finish(False, e.reason, str(e.args[0]))
         res.source_demo = j
-        sigma = float(g.action_noise) if g.action_noise >= 0 else float(self.get_parameter("action_noise").value)
         timeout = float(self.get_parameter("step_timeout").value)
         frame = str(self.get_parameter("frame_id").value)
         feedback = FeedbackThrottle(float(self.get_parameter("feedback_hz").value))

@@ -15,6 +15,9 @@ from scipy.spatial.transform import Rotation, Slerp
 from ..errors import InvalidInputError
 
 
+MAX_TRANSLATION = 0.5  # m: beyond the Panda's workspace scale a perturbation is a mistake, not noise
+
+
 @dataclass(frozen=True)
 class AugmentationConfig:
     translation: float = 0.08  # t, metres (paper: 0.08)
@@ -23,10 +26,11 @@ class AugmentationConfig:
     recovery_step_rot: float = 0.05  # max radians per recovery step
 
     def __post_init__(self):
-        if self.translation < 0 or self.rotation_deg < 0 or self.rotation_deg > 180:
-            raise InvalidInputError(f"augmentation needs t >= 0 and 0 <= r <= 180 deg, got {self}",
-                                    reason="INVALID_PARAMETER")
-        if self.recovery_step_pos <= 0 or self.recovery_step_rot <= 0:
+        # written so that NaN fails every comparison (issue 19: NaN reached rng.uniform)
+        if not (0 <= self.translation <= MAX_TRANSLATION and 0 <= self.rotation_deg <= 180):
+            raise InvalidInputError(f"augmentation needs 0 <= t <= {MAX_TRANSLATION} m and 0 <= r <= 180 deg, "
+                                    f"got {self}", reason="INVALID_PARAMETER")
+        if not (0 < self.recovery_step_pos < float("inf") and 0 < self.recovery_step_rot < float("inf")):
             raise InvalidInputError("recovery step sizes must be positive", reason="INVALID_PARAMETER")
 
 

@@ -1,0 +1,60 @@
+"""Calls into a running graph for the boundary and fuzz tests: one service call or one action goal,
+answered or None after a budget (never a hang). The first call on a fresh client repeats a probe
+until the server answers (skillgen_ros/answered.py), so discovery cannot lose a request."""
+from __future__ import annotations
+
+import time
+
+from skillgen_ros.answered import first_answer, sleep_until_done
+
+
+class Calls:
+    """Clients created on first use, on a node whose executor spins in another thread."""
+
+    def __init__(self, node, namespace: str = ""):
+        self.node, self.ns = node, namespace.rstrip("/")
+        self._clients: dict = {}
+
+    def _name(self, name: str) -> str:
+        return f"{self.ns}/{name}" if self.ns else name
+
+    def service(self, srv_type, name: str, request, timeout: float = 30.0, probe=None):
+        """The response to `request` (None after `timeout`); `probe` (a harmless request) is sent
+        until answered the first time the client is used."""
+        from rclpy.client import Client
+
+        key = (srv_type, name)
+        cli: Client | None = self._clients.get(key)
+        if cli is None:
+            cli = self.node.create_client(srv_type, self._name(name))
+            assert cli.wait_for_service(timeout_sec=60.0), f"service {name} never appeared"
+            if probe is not None:
+                assert first_answer(lambda: cli.call_async(probe), sleep_until_done, 60.0) is not None
+            self._clients[key] = cli
+        fut = cli.call_async(request)
+        sleep_until_done(fut, timeout)
+        return fut.result() if fut.done() else None
+
+    def goal(self, action_type, name: str, goal, timeout: float = 60.0, probe=None):
+        """(accepted, result) for one goal; result None if not accepted or not done in `timeout`."""
+        from rclpy.action import ActionClient
+
+        key = (action_type, name)
+        ac = self._clients.get(key)
+        if ac is None:
+            ac = ActionClient(self.node, action_type, self._name(name))
+            assert ac.wait_for_server(timeout_sec=60.0), f"action {name} never appeared"
+            if probe is not None:  # an empty-task goal: rejected at once, runs nothing
+                assert first_answer(lambda: ac.send_goal_async(probe), sleep_until_done, 60.0) is not None
+            self._clients[key] = ac
+        end = time.monotonic() + timeout
+        fut = ac.send_goal_async(goal)
+        sleep_until_done(fut, timeout)
+        if not fut.done():
+            return None, None
+        handle = fut.result()
+        if not handle.accepted:
+            return False, None
+        res = handle.get_result_async()
+        sleep_until_done(res, max(0.1, end - time.monotonic()))
+        return True, (res.result().result if res.done() else None)

@@ -3,10 +3,10 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import psutil
+import yaml
 
 from conftest import REPO, node_env, wait_for
 
@@ -51,6 +51,19 @@ def _children(p):
     return psutil.Process(p.pid).children()
 
 
+def _bags(cwd: Path) -> list[Path]:
+    return sorted(cwd.glob("bags/rec_*"))
+
+
+def _finalized(bag: Path) -> bool:
+    """The recorder's own word that it closed the bag (metadata.yaml custom_data), not just a file."""
+    try:
+        meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    except (OSError, yaml.YAMLError, KeyError, TypeError):
+        return False
+    return meta["custom_data"].get("skillgen.finalized") == "true"
+
+
 def test_launch_forwards_ctrl_c_to_every_node(ros_domain, tmp_path):
     p = subprocess.Popen(SKILLGEN + ["launch", "mock_record"], env=node_env(ros_domain),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
@@ -58,11 +71,11 @@ def test_launch_forwards_ctrl_c_to_every_node(ros_domain, tmp_path):
     try:
         assert wait_for(lambda: len(_children(p)) == 2, 20)
         kids = _children(p)
-        time.sleep(3.0)  # let the nodes finish starting
+        assert wait_for(lambda: _bags(tmp_path), 120), "the recorder never started recording"  # nodes are up
         p.send_signal(signal.SIGINT)
         assert p.wait(30) == 0, p.stderr.read()
-        bags = list(tmp_path.glob("bags/rec_*"))
-        assert bags and (bags[0] / "metadata.yaml").exists()  # the recorder finalized its bag
+        bags = _bags(tmp_path)
+        assert len(bags) == 1 and _finalized(bags[0])  # the recorder finalized its bag
         assert not any(k.is_running() and k.status() != psutil.STATUS_ZOMBIE for k in kids)
     finally:
         if p.poll() is None:
@@ -75,21 +88,37 @@ def test_ctrl_c_during_start_up_stops_the_graph_cleanly(ros_domain, tmp_path):
     spinning at exit), and a Ctrl-C while a node was still importing its modules printed a
     KeyboardInterrupt traceback (nodes/entry.py). Several moments of start-up; each must end at
     once, exit 0, no traceback, bag finalized."""
-    for k, delay in enumerate((0.4, 0.9, 1.5, 2.2)):
+    stages = {  # moments of start-up, each an observable state rather than a delay
+        "launcher started": lambda p, cwd: True,
+        "nodes spawned": lambda p, cwd: len(_children(p)) == 2,
+        "a node importing rclpy": lambda p, cwd: any(_loading(k.pid, "rclpy") for k in _children(p)),
+        "recording": lambda p, cwd: bool(_bags(cwd)),
+    }
+    for k, (stage, reached) in enumerate(stages.items()):
         cwd = tmp_path / str(k)
         cwd.mkdir()
         p = subprocess.Popen(SKILLGEN + ["launch", "mock_record"], env=node_env(ros_domain), stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True, cwd=cwd, start_new_session=True)
         try:
-            time.sleep(delay)
+            assert wait_for(lambda: _alive_children_ok(p) and reached(p, cwd), 120, 0.002), stage
             p.send_signal(signal.SIGINT)
             rc = p.wait(30)
             err = p.stderr.read()
-            assert rc == 0 and "terminate called" not in err and "Traceback" not in err, (delay, rc, err)
-            assert all((b / "metadata.yaml").exists() for b in cwd.glob("bags/rec_*")), delay
+            assert rc == 0 and "terminate called" not in err and "Traceback" not in err, (stage, rc, err)
+            assert all(_finalized(b) for b in _bags(cwd)), stage  # any bag begun is finalized
+            if stage == "recording":
+                assert len(_bags(cwd)) == 1  # and here there is one: the check above is not vacuous
         finally:
             if p.poll() is None:
                 os.killpg(p.pid, signal.SIGKILL)
+
+
+def _alive_children_ok(p) -> bool:
+    try:
+        _children(p)
+        return True
+    except psutil.NoSuchProcess:
+        return False
 
 
 def _loading(pid: int, marker: str) -> bool:
@@ -166,7 +195,7 @@ def test_launch_names_the_node_that_died_and_stops_the_rest(ros_domain, tmp_path
                          start_new_session=True)
     try:
         assert wait_for(lambda: len(_children(p)) == 2, 20)
-        time.sleep(2.0)
+        assert wait_for(lambda: _bags(tmp_path), 120), "the graph never came up"  # the recorder records
         victim = next(k for k in _children(p) if "mock_driver" in " ".join(k.cmdline()))
         others = [k for k in _children(p) if k.pid != victim.pid]
         victim.kill()

@@ -5,7 +5,6 @@ the `generate` action with SkillGenClient. One graph serves the module's tests.
 import json
 import shutil
 import signal
-import time
 from pathlib import Path
 
 import h5py
@@ -16,6 +15,7 @@ from conftest import REPO, NodeProcess, client_node, next_domain_id, wait_for
 from skillgen_ros.answered import first_answer
 from skillgen_ros.client import SkillGenClient
 from skillgen_ros.core.dataset.hdf5 import validate_dataset
+from skillgen_ros.core.generation.outcome import FailureReason
 
 # As graphs.yaml's datagen graph: sim_driver and skill_replay composed in one `container` process
 # (node-targeted -p), the driver rendering frames on demand (camera_hz 0), with graphs.yaml's depth noise,
@@ -188,7 +188,9 @@ def test_killed_perception_fails_attempts_with_a_reason_and_the_run_goes_on(grap
     assert wait_for(lambda: client.feedback() is not None and client.feedback().attempts >= 1, 300)
     procs["perception"].proc.send_signal(signal.SIGKILL)
     procs["perception"].proc.wait(10)
-    time.sleep(12)  # at least one attempt finds perception gone
+    # observable, not a sleep: an attempt has failed for want of perception (feedback's last_reason)
+    assert wait_for(lambda: client.feedback() is not None and client.feedback().last_reason == "PERCEPTION_FAILED",
+                    600)
     procs["perception"] = _start("perception", dom)
     res = client.result(timeout=900)
     assert res.accepted and res.attempts == 4, res.message
@@ -213,7 +215,8 @@ def test_run_attempt_service_runs_one_attempt(graph, tmp_path):
                                                 output_dir=str(tmp_path / "one")))
         ex.spin_until_future_complete(fut, timeout_sec=300)
         r = fut.result()
-        assert r.accepted and r.seconds > 0 and (r.success or r.reason != "OK"), r
+        assert r.accepted and r.seconds > 0, r
+        assert r.reason in {x.value for x in FailureReason} and (r.reason == "OK") == r.success, r
         assert (tmp_path / "one" / "demo.hdf5").exists()
 
 

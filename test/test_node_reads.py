@@ -1,6 +1,4 @@
 """The nodes' read and feedback helpers: pull-model subscriptions and the feedback rate limit."""
-import time
-
 from std_msgs.msg import Int32
 
 from conftest import wait_for
@@ -9,11 +7,13 @@ from skillgen_ros.nodes.latest import LatestMessage
 
 
 def test_feedback_throttle_limits_rate_but_always_sends_the_final_step():
-    fb = FeedbackThrottle(hz=20.0)
+    now = [100.0]
+    fb = FeedbackThrottle(hz=20.0, clock=lambda: now[0])  # a stepped clock, not a sleep
     assert fb.due()  # the first step always goes out
-    assert not fb.due()  # a step 0 s later does not
+    now[0] += 0.04
+    assert not fb.due()  # a step 40 ms later does not (20 Hz: 50 ms)
     assert fb.due(final=True)  # the last step always does
-    time.sleep(0.06)
+    now[0] += 0.06
     assert fb.due()
     every = FeedbackThrottle(hz=0.0)  # 0: no limit
     assert all(every.due() for _ in range(5))
@@ -27,7 +27,7 @@ def test_latest_message_takes_the_newest_on_demand(ros_node):
         assert reader.latest(timeout=0.2) is None  # nothing published yet
         for i in (1, 2, 3):
             pub.publish(Int32(data=i))
-            time.sleep(0.05)
+            assert wait_for(lambda: (m := reader.latest()) is not None and m.data == i, 5)  # observed, in order
         assert wait_for(lambda: (m := reader.latest()) is not None and m.data == 3, 5)  # depth 1: the newest
         msg, count = reader.snapshot()
         assert msg.data == 3

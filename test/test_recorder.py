@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from mcap.reader import make_reader
+from rclpy.duration import Duration
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from rclpy.serialization import serialize_message
 from rosbags.highlevel import AnyReader
@@ -28,11 +29,24 @@ PARAMS = str(REPO / "params" / "recorder.yaml")
 
 
 
-def _publish_both(node, n: int, period: float = 0.004, recorders: int = 1) -> list[tuple[str, bytes]]:
+def _subscribed(recs, topics) -> bool:
+    """Every recorder says it subscribed to every topic (its log line), observable state."""
+    return all(f"recording {t} [" in r.output() for r in recs for t in topics)
+
+
+def _recorded(bag: Path, n: int) -> bool:
+    """The bag on disk (open or finalized; complete chunks) holds n messages."""
+    try:
+        return BagReader(bag).message_count == n
+    except Exception:  # noqa: BLE001 -- not created yet / first chunk not written yet
+        return False
+
+
+def _publish_both(node, n: int, recs, period: float = 0.004) -> list[tuple[str, bytes]]:
     osc_pub = node.create_publisher(OscTarget, "osc_target", QoSProfile(depth=100))
     js_pub = node.create_publisher(JointState, "joint_states", qos_profile_sensor_data)
-    assert wait_for(lambda: min(osc_pub.get_subscription_count(), js_pub.get_subscription_count()) >= recorders, 15)
-    time.sleep(0.3)
+    assert wait_for(lambda: _subscribed(recs, ("/osc_target", "/joint_states")), 30)
+    assert wait_for(lambda: min(osc_pub.get_subscription_count(), js_pub.get_subscription_count()) >= len(recs), 15)
     sent = []
     for i in range(n):
         osc = OscTarget()
@@ -42,7 +56,8 @@ def _publish_both(node, n: int, period: float = 0.004, recorders: int = 1) -> li
             data = serialize_message(msg)
             pub.publish(data)  # raw bytes, exactly what the recorder must store
             sent.append((topic, data))
-        time.sleep(period)
+        time.sleep(period)  # pacing (a best-effort reader keeps up), not synchronisation
+    assert osc_pub.wait_for_all_acked(Duration(seconds=15))  # the reliable topic reached every recorder
     return sent
 
 
@@ -54,8 +69,8 @@ def _args(out: Path, *extra: str) -> list[str]:
 def test_record_then_read_back_byte_identical(tmp_path, start_node, ros_node):
     bag = tmp_path / "rec"
     rec = start_node("recorder", *_args(bag, "-p", "max_chunk_age:=0.2"))
-    sent = _publish_both(ros_node, 100)
-    time.sleep(0.5)
+    sent = _publish_both(ros_node, 100, [rec])
+    assert wait_for(lambda: _recorded(bag, 200), 30)  # every message is in a completed chunk on disk
     out = rec.stop()
     assert rec.proc.returncode == 0, out
     assert "finalized: 200 messages" in out, out
@@ -78,8 +93,8 @@ def test_sigterm_finalizes_and_sigkill_leaves_readable_bag(tmp_path, start_node,
     term = start_node("recorder", "--ros-args", "--params-file", PARAMS, "-p", f"output:={term_bag}",
                       "-p", "all_topics:=true")  # discovers both topics; skips /rosout, /parameter_events
     kill = start_node("recorder", *_args(kill_bag, "-p", "max_chunk_age:=0.2"))
-    sent = _publish_both(ros_node, 60, recorders=2)
-    time.sleep(1.0)  # > max_chunk_age: everything published is in completed chunks
+    sent = _publish_both(ros_node, 60, [term, kill])
+    assert wait_for(lambda: _recorded(kill_bag, 120), 30)  # everything published is in completed chunks
     term.proc.send_signal(signal.SIGTERM)
     kill.proc.send_signal(signal.SIGKILL)
     term.proc.wait(10)
@@ -100,8 +115,8 @@ def test_sigterm_finalizes_and_sigkill_leaves_readable_bag(tmp_path, start_node,
 
 def test_services_start_pause_resume_stop(tmp_path, start_node, ros_node):
     bag = tmp_path / "svc"
-    start_node("recorder", "--ros-args", "--params-file", PARAMS, "-p", "autostart:=false",
-               "-p", "topics:=[osc_target]")
+    rec = start_node("recorder", "--ros-args", "--params-file", PARAMS, "-p", "autostart:=false",
+                     "-p", "topics:=[osc_target]", "-p", "max_chunk_age:=0.2")
     clients = {n: ros_node.create_client(RecorderSrv, f"recorder/{n}") for n in ("start", "stop", "pause", "resume")}
     assert all(c.wait_for_service(timeout_sec=15) for c in clients.values())
 
@@ -118,20 +133,22 @@ def test_services_start_pause_resume_stop(tmp_path, start_node, ros_node):
     assert res.success and Path(res.bag_path) == bag
     assert not call("start", output=str(tmp_path / "other")).success
     pub = ros_node.create_publisher(OscTarget, "osc_target", 10)
-    assert wait_for(lambda: pub.get_subscription_count() > 0, 15)
-    time.sleep(0.3)
+    assert wait_for(lambda: _subscribed([rec], ["/osc_target"]) and pub.get_subscription_count() > 0, 30)
 
     def burst(value: float, n: int = 10):
+        """n reliable messages, each acknowledged by the recorder's reader before the next is sent."""
         for _ in range(n):
             pub.publish(OscTarget(gripper=value))
-            time.sleep(0.005)
-        time.sleep(0.3)
+            assert pub.wait_for_all_acked(Duration(seconds=15))
 
     burst(1.0)
+    assert wait_for(lambda: _recorded(bag, 10), 30)
     assert call("pause").success
-    burst(2.0)
+    burst(2.0)  # while paused: skipped, never written; a repeated pause reports the count (observable)
+    assert wait_for(lambda: "10 recorded, 10 skipped" in call("pause").message, 30)
     assert call("resume").success
     burst(3.0)
+    assert wait_for(lambda: _recorded(bag, 20), 30)
     res = call("stop")
     assert res.success and re.search(r"finalized: (\d+) messages", res.message).group(1) == "20", res.message
     with AnyReader([bag]) as r:

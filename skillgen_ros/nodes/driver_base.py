@@ -95,7 +95,7 @@ class DriverNode(Node):
         try:  # finite and in range (NaN and inf fail these checks)
             self.hz = V.finite("control_hz", self.param("control_hz"), 0.0, 10_000.0, lo_open=True)
             V.finite("lockstep_timeout_s", self.param("lockstep_timeout_s"), 0.0, 3600.0, lo_open=True)
-            V.finite("feedback_hz", self.param("feedback_hz"), 0.0, 10_000.0, lo_open=True)
+            V.finite("feedback_hz", self.param("feedback_hz"), 0.0, 10_000.0)  # 0 = every period
             V.finite("camera_hz", self.param("camera_hz"), 0.0, 10_000.0)
             for k in ("depth_noise_base", "depth_noise_quadratic"):
                 V.finite(k, self.param(k), 0.0, 1.0)
@@ -174,7 +174,7 @@ class DriverNode(Node):
                 if p.name == "camera_hz":
                     every = self.cameras.periods_per_frame(p.value)
                 elif p.name in ("lockstep_timeout_s", "feedback_hz"):
-                    V.finite(p.name, p.value, 0.0, 10_000.0, lo_open=True)
+                    V.finite(p.name, p.value, 0.0, 10_000.0, lo_open=p.name == "lockstep_timeout_s")
             except (SkillGenError, TypeError, ValueError) as e:
                 return SetParametersResult(successful=False, reason=str(e))
         if every is not None:

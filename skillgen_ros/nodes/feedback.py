@@ -11,12 +11,13 @@ import time
 
 
 class FeedbackThrottle:
-    def __init__(self, hz: float):
+    def __init__(self, hz: float, clock=time.monotonic):
         self.min_interval = 1.0 / hz if hz > 0 else 0.0
         self._last = -float("inf")
+        self._clock = clock  # injectable: tests step a fake clock instead of sleeping
 
     def due(self, final: bool = False) -> bool:
-        now = time.monotonic()
+        now = self._clock()
         if final or now - self._last >= self.min_interval:
             self._last = now
             return True

@@ -67,8 +67,8 @@ class HspNode(Node):
             raise ParameterError(str(e.args[0])) from None
         timeouts = {k: float(p[f"timeout_{k}"]) for k in TIMEOUTS}
         if not all(0 < v < float("inf") for v in timeouts.values()) or int(p["torch_threads"]) < 1 \
-                or not 0 < float(p["feedback_hz"]) < float("inf"):
-            raise ParameterError(f"timeouts and feedback_hz must be finite and > 0, torch_threads >= 1, got {timeouts}, {p['torch_threads']}")
+                or not 0 <= float(p["feedback_hz"]) < float("inf"):
+            raise ParameterError(f"timeouts must be finite and > 0, feedback_hz finite and >= 0, torch_threads >= 1, got {timeouts}, {p['torch_threads']}")
         import torch
 
         torch.set_num_threads(int(p["torch_threads"]))  # one core per policy step; the same sums as in-process

@@ -152,6 +152,7 @@ class Recorder(Node):
         self._specs: dict[str, TopicSpec] = {}
         self._skipped: set[str] = set()
         self.received = 0
+        self.skipped = 0
         self._io_node = rclpy.create_node(f"_{self.get_name()}_io", namespace=self.get_namespace(),
                                           context=self.context)
         self._io_exec = SingleThreadedExecutor(context=self.context)
@@ -230,9 +231,10 @@ class Recorder(Node):
         with self._lock:
             want_from = State.RECORDING if paused else State.PAUSED
             if self._state != want_from:
-                return False, f"BAD_STATE: cannot {'pause' if paused else 'resume'} while {self._state.value}"
+                return False, (f"BAD_STATE: cannot {'pause' if paused else 'resume'} while {self._state.value} "
+                               f"({self.received} recorded, {self.skipped} skipped)")
             self._state = State.PAUSED if paused else State.RECORDING
-        return True, self._state.value
+        return True, f"{self._state.value} ({self.received} recorded, {self.skipped} skipped)"
 
     def _respond(self, response, result: tuple[bool, str]):
         response.success, response.message = result
@@ -292,6 +294,7 @@ class Recorder(Node):
     def _on_message(self, topic: str, data: bytes, info) -> None:
         writer = self._writer
         if writer is None or self._state != State.RECORDING:
+            self.skipped += 1  # arrived while paused or stopped (reported by the services)
             return
         self.received += 1
         log_ns = info.get("received_timestamp") or time.time_ns()

@@ -67,7 +67,7 @@ class SkillReplayNode(Node):
         try:
             V.finite("action_noise", self.get_parameter("action_noise").value, 0.0, MAX_ACTION_NOISE)
             V.finite("step_timeout", self.get_parameter("step_timeout").value, 0.0, 3600.0, lo_open=True)
-            V.finite("feedback_hz", self.get_parameter("feedback_hz").value, 0.0, 1000.0, lo_open=True)
+            V.finite("feedback_hz", self.get_parameter("feedback_hz").value, 0.0, 1000.0)  # 0 = every step
         except InvalidInputError as e:
             raise ParameterError(str(e.args[0])) from None
         self._demos: dict[tuple[str, str], list] = {}

@@ -12,5 +12,5 @@ set +e
 "$ROOT/.venv/bin/python" -m pytest -q -p no:cacheprovider "$@" test
 rc=$?
 set -e
-if [ $rc -eq 5 ]; then echo "pytest collected no tests"; exit 0; fi
+if [ $rc -eq 5 ]; then echo "pytest collected no tests: that is a failure (issue 19)" >&2; exit 1; fi
 exit $rc

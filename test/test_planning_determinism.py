@@ -27,7 +27,7 @@ WALL = _box("wall", [0.5, 0.0, 0.25], [0.12, 0.015, 0.25])
 def world():
     kin = PandaKinematics()
     start = IKSolver(kin, rng=0).solve(Pose([0.5, -0.25, 0.15], DOWN).matrix(), seed_q=Q_HOME,
-                                       timeout=0.5).solutions[0]
+                                       max_iterations=8000, timeout=300.0).solutions[0]
     return kin, start
 
 
@@ -69,7 +69,7 @@ def test_same_seed_same_plans_in_a_fresh_process(tmp_path):
         "from skillgen_ros.core.planning.planner import Mode\n"
         "from skillgen_ros.core.robot import Q_HOME\n"
         "kin = PandaKinematics()\n"
-        "start = IKSolver(kin, rng=0).solve(Pose([0.5, -0.25, 0.15], DOWN).matrix(), seed_q=Q_HOME, timeout=0.5).solutions[0]\n"
+        "start = IKSolver(kin, rng=0).solve(Pose([0.5, -0.25, 0.15], DOWN).matrix(), seed_q=Q_HOME, max_iterations=8000, timeout=300.0).solutions[0]\n"
         "r = _planner(kin, seed=5).plan(start, Pose([0.5, 0.25, 0.15], DOWN), Mode.TRANSIT, timeout=5.0)\n"
         "assert r.ok, r.message\n"
         "sys.stdout.write(np.round(r.joint_path, 9).tobytes().hex())\n")
@@ -106,7 +106,7 @@ def test_an_rrt_iteration_budget_ends_the_same_search_however_slow_the_machine(w
 
     kin, start = world
     goal = IKSolver(kin, rng=0).solve(Pose([0.5, 0.25, 0.15], DOWN).matrix(), seed_q=Q_HOME,
-                                      timeout=0.5).solutions[0]
+                                      max_iterations=8000, timeout=300.0).solutions[0]
     cm = CollisionModel(kin)
     cm.set_boxes([WALL])
 

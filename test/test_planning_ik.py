@@ -20,26 +20,29 @@ def _pose_error(kin, q, T):
     return dp, np.arccos(c)
 
 
+CAP = 300.0  # s: only a safety net; every test here is budgeted in iterations (issue 19)
+
+
 def test_round_trip_random_reachable_poses(kin):
     ik = IKSolver(kin, rng=0)
     rng = np.random.default_rng(0)
     solved = 0
     for _ in range(200):
         T = kin.fk(rng.uniform(kin.lower, kin.upper))
-        res = ik.solve(T, seed_q=rng.uniform(kin.lower, kin.upper), timeout=0.1)
+        res = ik.solve(T, seed_q=rng.uniform(kin.lower, kin.upper), max_iterations=4000, timeout=CAP)
         if res.ok:
             solved += 1
             q = res.solutions[0]
             assert np.all(q >= kin.lower) and np.all(q <= kin.upper)
             dp, dr = _pose_error(kin, q, T)
             assert dp < 1e-5 and dr < 1e-5
-    assert solved >= 199  # generous timeout: CPU contention must not fail the test
+    assert solved >= 199  # an iteration budget: CPU contention cannot fail the test
 
 
 def test_pose_target_and_multiple_distinct_solutions(kin):
     ik = IKSolver(kin, rng=1)
     target = Pose.from_matrix(kin.fk(np.array([0.3, 0.2, -0.1, -2.0, 0.1, 2.0, 0.5])))
-    res = ik.solve(target, timeout=0.2, max_solutions=3)
+    res = ik.solve(target, max_iterations=8000, timeout=CAP, max_solutions=3)
     assert res.status is IKStatus.SUCCESS and len(res.solutions) == 3
     for i, a in enumerate(res.solutions):
         assert _pose_error(kin, a, target.matrix())[0] < 1e-5
@@ -47,12 +50,12 @@ def test_pose_target_and_multiple_distinct_solutions(kin):
             assert np.abs(a - b).max() > 0.05
 
 
-def test_unreachable_pose_fails_within_timeout(kin):
+def test_unreachable_pose_fails_within_its_iteration_budget(kin):
     ik = IKSolver(kin, rng=2)
     T = np.eye(4)
     T[:3, 3] = (2.0, 0.0, 0.5)  # 2 m away: beyond the Panda's reach
-    res = ik.solve(T, timeout=0.01)
-    assert res.status is IKStatus.FAILED and res.time < 0.05
+    res = ik.solve(T, max_iterations=400, timeout=CAP)
+    assert res.status is IKStatus.FAILED and res.iterations == 400  # stops at the budget, not later
 
 
 def test_collision_aware_rejects_colliding_solutions(kin):
@@ -60,11 +63,11 @@ def test_collision_aware_rejects_colliding_solutions(kin):
     T = kin.fk(q_ref)
     # a checker that forbids elbow-up (joint 2 > 0) solutions: the search must go on past them
     ik = IKSolver(kin, collision_checker=lambda Q: Q[:, 1] > 0.0, rng=3)
-    res = ik.solve(T, seed_q=q_ref, timeout=0.2)
+    res = ik.solve(T, seed_q=q_ref, max_iterations=8000, timeout=CAP)
     assert res.ok and res.solutions[0][1] <= 0.0
     assert res.rejected_in_collision >= 1
     everything = IKSolver(kin, collision_checker=lambda Q: np.ones(len(Q), bool), rng=4)
-    assert everything.solve(T, seed_q=q_ref, timeout=0.01).status is IKStatus.IN_COLLISION
+    assert everything.solve(T, seed_q=q_ref, max_iterations=400, timeout=CAP).status is IKStatus.IN_COLLISION
 
 
 def test_bad_input(kin):
@@ -89,7 +92,6 @@ def test_an_iteration_budget_finds_the_same_solutions_however_slow_the_machine(k
     results = [IKSolver(kin, collision_checker=c, rng=9).solve(T, timeout=30.0, max_solutions=50,
                                                                max_iterations=120)
                for c in (lambda Q: np.zeros(len(Q), bool), slow)]
-    assert results[1].time > 1.5 * results[0].time
     for r in results:
         assert r.ok and r.iterations == 120
     assert len(results[0].solutions) == len(results[1].solutions) >= 2

@@ -1,5 +1,4 @@
 """MotionPlanner: around a wall, transfer clearance, straight retreat/approach, status codes."""
-import time
 
 import numpy as np
 import pytest
@@ -112,10 +111,9 @@ def test_bad_requests_get_codes_fast(setup):
         (Pose([0.5, 0.0, 0.3], [0.0, 0.0, 0.0, 2.0]), PlanStatus.INVALID_REQUEST),
     ]
     for target, expected in cases:
-        t = time.perf_counter()
         res = planner.plan(Q_HOME, target, Mode.TRANSIT, timeout=5.0)
         assert res.status is expected, (target, res.message)
-        assert time.perf_counter() - t < 1.0
+        assert "transit" not in res.timings, res.timings  # failed before any search (was: < 1 s wall)
     assert planner.plan(Q_HOME, Pose([0.5, 0, 0.3], DOWN), Mode.TRANSFER).status is PlanStatus.INVALID_REQUEST
     # a start inside an obstacle
     cm.set_boxes([_box("blob", kin.link_poses(Q_HOME)["panda_link4"][:3, 3], [0.05] * 3)])

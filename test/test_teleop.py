@@ -6,7 +6,6 @@ import pty
 import subprocess
 import termios
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -64,6 +63,7 @@ class _Watcher:
         self.node.create_subscription(PoseStamped, "ee_pose", self._ee, 10)
         self.node.create_subscription(GripperState, "gripper_state", self._grip, 10)
         self.targets = 0  # teleop's osc_target messages: it spins and holds the measured pose
+        self.target = None  # the newest one's position
         self.node.create_subscription(OscTarget, "osc_target", self._target, 10)
         self.ex = SingleThreadedExecutor(context=self.ctx)
         self.ex.add_node(self.node)
@@ -73,8 +73,9 @@ class _Watcher:
     def _ee(self, m):
         self.ee = np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z])
 
-    def _target(self, _m):
+    def _target(self, m):
         self.targets += 1
+        self.target = np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z])
 
     def _grip(self, m):
         self.grip = (float(m.command), float(m.width))
@@ -109,9 +110,10 @@ def test_keys_move_the_ee_and_toggle_the_gripper(ros_domain, driver):
 
         def press(key: str, axis: int, sign: float, n: int = 4):
             start = w.ee.copy()
-            for _ in range(n):
+            for _ in range(n):  # one key at a time: each is seen in the published target before the next
+                before = w.target.copy()
                 os.write(master, key.encode())
-                time.sleep(0.06)
+                assert wait_for(lambda: sign * (w.target[axis] - before[axis]) > 0.5 * STEP, 8), f"key {key!r} unseen"
             moved = lambda: sign * (w.ee[axis] - start[axis]) > 0.6 * n * STEP  # noqa: E731
             assert wait_for(moved, 8), f"key {key!r}: EE moved {w.ee - start}, expected {sign:+} along axis {axis}"
             other = [i for i in range(3) if i != axis]

@@ -42,4 +42,12 @@ def node_environment(env: dict | None = None) -> dict:
     return env
 
 
+def launch_environment(environ) -> dict:
+    """The variables a launch file adds to each node (`additional_env` overrides the inherited
+    environment, so only what the user left unset): LOCALHOST discovery and one math thread."""
+    defaults = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", **NODE_THREAD_DEFAULTS}
+    return {k: v for k, v in defaults.items() if not environ.get(k)}
+
+
 ros_environment()
+

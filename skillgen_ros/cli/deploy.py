@@ -56,7 +56,7 @@ def _report(summary, out: str, extra: dict) -> None:
     print(f"mean steps {summary.mean_steps:.0f}, pi+T {summary.inference_ms_per_step:.2f} ms per policy step")
     os.makedirs(out, exist_ok=True)
     path = os.path.join(out, "results.json")
-    with open(path, "w") as f:
+    with open(path, "x") as f:  # created, never overwritten (main checks before any rollout)
         json.dump({**summary.to_json(), **extra, "command": "skillgen deploy " + " ".join(sys.argv[2:])}, f, indent=2)
     print(f"results  {path}")
 
@@ -208,7 +208,9 @@ def run_graph(a) -> int:
 
     out = _output(a)
     os.makedirs(out, exist_ok=True)
-    with graph_client("deploy", HspClient, "hsp 'run_task'", a.startup_timeout) as (_graph, client):
+    # the recorder writes the rollout bags only under its roots; an explicit --output is the user's choice
+    roots = ["--ros-args", "-p", f"writable_roots:=['{os.path.abspath(out)}']"] if a.output else []
+    with graph_client("deploy", HspClient, "hsp 'run_task'", a.startup_timeout, ros_args=roots) as (_graph, client):
         results = rollouts_through_graph(client, a, out)
         _report(summarize(a.task, a.variant, a.mode, results), out, {"path": "graph"})
         return 0
@@ -218,6 +220,11 @@ def main(argv: list[str]) -> int:
     a = _parser().parse_args(argv)
     if a.rollouts < 1 or a.seed < 0 or a.first_rollout < 0:
         print("INVALID_ARGUMENT: --rollouts must be >= 1, --seed and --first-rollout >= 0", file=sys.stderr)
+        return 2
+    a.output = _output(a)  # fixed once: the timestamped default must name one directory throughout
+    if os.path.exists(os.path.join(a.output, "results.json")):
+        print(f"OUTPUT_EXISTS: {os.path.join(_output(a), 'results.json')} already exists; choose another --output "
+              "(results are never overwritten)", file=sys.stderr)
         return 2
     try:
         return run_in_process(a) if a.in_process else run_graph(a)

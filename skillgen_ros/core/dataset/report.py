@@ -173,8 +173,10 @@ def write_report(out_dir: str, runs: Sequence[RunSummary], title: str = "SkillGe
     if not runs:
         raise InvalidInputError("write_report needs at least one run summary")
     os.makedirs(out_dir, exist_ok=True)
-    plots = _plots(out_dir, runs)
     path = os.path.join(out_dir, "report.md")
-    with open(path, "w") as f:
+    if os.path.exists(path):  # created, never overwritten (issue 19)
+        raise InvalidInputError(f"{path} already exists; reports are never overwritten", reason="OUTPUT_EXISTS")
+    plots = _plots(out_dir, runs)
+    with open(path, "x") as f:
         f.write(render_markdown(runs, plots, title))
     return path

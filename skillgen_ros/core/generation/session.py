@@ -94,7 +94,7 @@ def check_output_dir(path: str) -> None:
         raise InvalidInputError(f"cannot create output directory {p}: {e.strerror}", reason="UNWRITABLE_OUTPUT") from e
     if not os.access(p, os.W_OK | os.X_OK):
         raise InvalidInputError(f"output directory {p} is not writable", reason="UNWRITABLE_OUTPUT")
-    for name in ("demo.hdf5", "failed.hdf5"):
+    for name in ("demo.hdf5", "failed.hdf5", "report.md"):
         if (p / name).exists():
             raise InvalidInputError(f"{p / name} already exists; choose a new output_dir (existing data is kept)",
                                     reason="OUTPUT_EXISTS")

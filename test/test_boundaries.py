@@ -9,7 +9,6 @@ is answered GRAPH_NOT_READY after 3 x timeout_state. Core checks: test_validatio
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,33 +17,19 @@ from skillgen_interfaces.action import Generate, ReplaySkill, RunTask
 from skillgen_interfaces.msg import SceneObject
 from skillgen_interfaces.srv import EstimatePoses, LoadDemos, PlanToPose, Recorder, ResetScene, RunAttempt
 
-from conftest import REPO, next_domain_id
-from helpers.ros_calls import Calls
+from conftest import next_domain_id
+from helpers.ros_calls import boundary_graphs
 from skillgen_ros.core.robot import Q_HOME
-from skillgen_ros.testing.handles import launch_graph, spinning_node
 
-GRAPHS = Path(__file__).parent / "helpers" / "boundary_graphs.yaml"
 NAN, INF = float("nan"), float("inf")
-BAGS = str(REPO / "bags")
 
 
 @pytest.fixture(scope="module")
 def nodes(tmp_path_factory):
     """(Calls into the boundaries graph, Calls into the lone datagen, both graphs, artifacts dir)."""
     art = tmp_path_factory.mktemp("boundaries")
-    domain = next_domain_id()
-    with spinning_node(domain, "boundary_client") as node:
-        g = launch_graph("boundaries", domain, node, art / "g", graphs_file=GRAPHS, timeout=240,
-                         skill_replay={"demos_dir": BAGS}, hsp={"demos_dir": BAGS})
-        try:
-            d = launch_graph("datagen_alone", domain, node, art / "d", graphs_file=GRAPHS, namespace="/iso",
-                             timeout=240, datagen={"demos_dir": BAGS})
-            try:
-                yield Calls(node), Calls(node, "/iso"), (g, d), art
-            finally:
-                d.stop()
-        finally:
-            g.stop()
+    with boundary_graphs(next_domain_id(), art) as (calls, graphs):
+        yield calls[""], calls["/iso"], graphs, art
 
 
 def _no_tracebacks(graphs) -> None:

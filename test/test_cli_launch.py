@@ -89,7 +89,7 @@ def test_ctrl_c_during_start_up_stops_the_graph_cleanly(ros_domain, tmp_path):
     KeyboardInterrupt traceback (nodes/entry.py). Several moments of start-up; each must end at
     once, exit 0, no traceback, bag finalized."""
     stages = {  # moments of start-up, each an observable state rather than a delay
-        "launcher started": lambda p, cwd: True,
+        "first node spawned": lambda p, cwd: len(_children(p)) >= 1,  # the launcher's handler is in place
         "nodes spawned": lambda p, cwd: len(_children(p)) == 2,
         "a node importing rclpy": lambda p, cwd: any(_loading(k.pid, "rclpy") for k in _children(p)),
         "recording": lambda p, cwd: bool(_bags(cwd)),
@@ -175,11 +175,10 @@ def test_a_node_that_ignores_ctrl_c_is_named_dumped_and_terminated():
     stubborn = ("import faulthandler, signal, time\n"
                 "faulthandler.register(signal.SIGUSR1, all_threads=True)\n"
                 "signal.signal(signal.SIGINT, signal.SIG_IGN)\n"
-                "print('up', flush=True)\n"
-                "def waiting_forever():\n    time.sleep(60)\nwaiting_forever()\n")
+                "def waiting_forever():\n    print('up', flush=True)\n    time.sleep(60)\nwaiting_forever()\n")
     p = subprocess.Popen([sys.executable, "-c", stubborn], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        assert p.stdout.readline().strip() == "up"
+        assert p.stdout.readline().strip() == "up"  # printed from inside waiting_forever: its frame is live
         p.send_signal(signal.SIGINT)
         assert _escalate([("stubborn", p)]) == ["stubborn"]
         assert p.wait(10) == -signal.SIGTERM

@@ -75,6 +75,7 @@ RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 GRIPPER_WAIT_S = 1.5
 MAX_TRAJECTORY_POINTS = 200_000  # about an hour at 50 Hz: more is a mistake, not a motion
+MAX_TRAJECTORY_SECONDS = 3600.0  # a longer trajectory would hold the driver (lockstep: run) for hours
 
 
 class DriverNode(Node):
@@ -363,6 +364,9 @@ class DriverNode(Node):
                 raise SkillGenError(f"{len(handle.request.trajectory.points)} trajectory points; at most "
                                     f"{MAX_TRAJECTORY_POINTS} are accepted", "INVALID_GOAL")
             names, times, pos, vel = convert.trajectory_from_msg(handle.request.trajectory)
+            if len(times) and not float(times[-1]) <= MAX_TRAJECTORY_SECONDS:
+                raise SkillGenError(f"trajectory lasts {float(times[-1]):.0f} s; at most {MAX_TRAJECTORY_SECONDS:.0f} s "
+                                    "are accepted", "INVALID_GOAL")
             with self.lock:
                 self.world.start_trajectory(names, times, pos, vel, tol)
                 self.busy = True

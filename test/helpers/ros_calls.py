@@ -3,9 +3,34 @@ answered or None after a budget (never a hang). The first call on a fresh client
 until the server answers (skillgen_ros/answered.py), so discovery cannot lose a request."""
 from __future__ import annotations
 
+import contextlib
 import time
+from pathlib import Path
 
 from skillgen_ros.answered import first_answer, sleep_until_done
+
+GRAPHS = Path(__file__).parent / "boundary_graphs.yaml"
+BAGS = str(Path(__file__).resolve().parents[2] / "bags")
+
+
+@contextlib.contextmanager
+def boundary_graphs(domain: int, artifacts: Path, name: str = "boundary_client"):
+    """The `boundaries` graph and datagen alone in /iso (helpers/boundary_graphs.yaml), with a
+    spinning client node; yields ({"": Calls, "/iso": Calls}, (graph, datagen graph))."""
+    from skillgen_ros.testing.handles import launch_graph, spinning_node
+
+    with spinning_node(domain, name) as node:
+        g = launch_graph("boundaries", domain, node, artifacts / "g", graphs_file=GRAPHS, timeout=240,
+                         skill_replay={"demos_dir": BAGS}, hsp={"demos_dir": BAGS})
+        try:
+            d = launch_graph("datagen_alone", domain, node, artifacts / "d", graphs_file=GRAPHS, namespace="/iso",
+                             timeout=240, datagen={"demos_dir": BAGS})
+            try:
+                yield {"": Calls(node), "/iso": Calls(node, "/iso")}, (g, d)
+            finally:
+                d.stop()
+        finally:
+            g.stop()
 
 
 class Calls:

@@ -39,6 +39,13 @@ def resolve_executable(exe: str) -> Path:
     return path
 
 
+def _hold_stop_signals() -> None:
+    """In a starting node (before exec): SIGINT/SIGTERM stay pending, not lost and not raised, until
+    nodes/entry.py has its quiet handlers (issue 19: a Ctrl-C while the interpreter imported the
+    entry module printed a KeyboardInterrupt traceback; the blocked mask survives exec)."""
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+
+
 def run(exe: str, args: list[str]) -> int:
     path = resolve_executable(exe)
     env = rosenv.node_environment(dict(os.environ))
@@ -67,7 +74,7 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
                 break
             cmd = [str(resolve_executable(proc.exe)), *proc.args, *(extra_ros_args or [])]
             print(f"[launch] starting {proc.label}: {' '.join(cmd)}", file=sys.stderr, flush=True)
-            child = subprocess.Popen(cmd, env=env)
+            child = subprocess.Popen(cmd, env=env, preexec_fn=_hold_stop_signals)
             procs.append((proc.label, child))
             if stopping["flag"]:  # the signal came while this one was starting: it missed the forward
                 child.send_signal(signal.SIGINT)

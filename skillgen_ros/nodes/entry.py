@@ -23,6 +23,9 @@ def quiet_stop_signals() -> threading.Event:
     hung in CI)."""
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, lambda _signum, _frame: STOP.set())
+    # `skillgen launch` starts nodes with both blocked (cli/launcher.py): one sent meanwhile is
+    # delivered now, to the handlers above
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
     return STOP
 
 

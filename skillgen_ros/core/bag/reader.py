@@ -79,13 +79,46 @@ class FileScan:
 
 
 # What a cut-off or damaged tail raises inside mcap's stream reader.
-_TAIL_ERRORS = (McapError, struct.error, EOFError, ValueError, OSError, RuntimeError)
+_TAIL_ERRORS = (McapError, struct.error, EOFError, ValueError, OSError, RuntimeError, MemoryError, KeyError)
+
+
+class _BoundedFile:
+    """A read-only file whose reads never ask for more than the bytes left: an absurd length field
+    (a flipped bit in a record header) becomes a short read that mcap reports, instead of a
+    multi-gigabyte allocation (issue 19: MemoryError before this)."""
+
+    def __init__(self, f):
+        self._f = f
+        self._size = os.fstat(f.fileno()).st_size
+
+    def read(self, n: int = -1) -> bytes:
+        left = max(0, self._size - self._f.tell())
+        return self._f.read(left if n is None or n < 0 else min(n, left))
+
+    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
+        return self._f.seek(offset, whence)
+
+    def tell(self) -> int:
+        return self._f.tell()
+
+    def readable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return True
+
+
+def _open(path: Path):
+    """(raw file, bounded view) for mcap's readers."""
+    f = open(path, "rb")
+    return f, _BoundedFile(f)
 
 
 def stream_records(path: Path, scan: FileScan) -> Iterator[tuple[Channel, Message]]:
     """Stream every message in file order, filling `scan` (schemas, channels, metadata records,
     chunk compressions) as records arrive; stop quietly (scan.truncated) at a damaged tail."""
-    with open(path, "rb") as f:
+    raw, f = _open(path)
+    with raw:
         stream = StreamReader(f, skip_magic=True, emit_chunks=True, validate_crcs=True).records
         head = f.read(8)
         if head != MAGIC:
@@ -118,6 +151,13 @@ def stream_records(path: Path, scan: FileScan) -> Iterator[tuple[Channel, Messag
                 scan.library = record.library
 
 
+def reader_pos(f) -> int:
+    try:
+        return int(f.tell())
+    except (OSError, ValueError):
+        return -1
+
+
 def _is_finalized(path: Path) -> bool:
     size = path.stat().st_size
     if size < 2 * len(MAGIC) + 29:
@@ -131,7 +171,8 @@ def _scan_file(path: Path) -> FileScan:
     scan = FileScan()
     if _is_finalized(path):
         try:
-            with open(path, "rb") as f:
+            raw, f = _open(path)
+            with raw:
                 reader = SeekingReader(f, validate_crcs=True)
                 summary = reader.get_summary()
                 if summary is not None and summary.statistics is not None:
@@ -241,13 +282,21 @@ class BagReader:
             return BagMessage(channel.topic, schema_name, bytes(msg.data), msg.log_time, msg.publish_time)
 
         if not scan.truncated:
-            with open(path, "rb") as f:
-                reader = SeekingReader(f)
-                for schema, channel, msg in reader.iter_messages(
-                        topics=None if wanted is None else list(wanted), log_time_order=True,
-                        starting_at=start_ns, ending_before=end_ns):
+            raw, f = _open(path)
+            with raw:
+                reader = SeekingReader(f, validate_crcs=True)  # a flipped bit is an error, never silent
+                it = reader.iter_messages(topics=None if wanted is None else list(wanted), log_time_order=True,
+                                          starting_at=start_ns, ending_before=end_ns)
+                while True:
+                    try:
+                        schema, channel, msg = next(it)
+                    except StopIteration:
+                        return
+                    except _TAIL_ERRORS as e:  # CRC mismatch, undecompressable chunk, absurd length
+                        raise BagError(f"{path}: damaged chunk after {reader_pos(f)} bytes "
+                                       f"({type(e).__name__}: {e}); `skillgen bag recover` cannot repair a "
+                                       f"finalized file, re-record it", "BAG_CORRUPT") from None
                     yield make(schema.name if schema else "", channel, msg)
-            return
         # Killed recording: file order is receive order; sort within the file's recovered part.
         rescan = FileScan()
         batch = [make(rescan.schemas[c.schema_id].name if c.schema_id in rescan.schemas else "", c, m)

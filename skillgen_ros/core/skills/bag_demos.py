@@ -89,6 +89,9 @@ def find_topics(reader: BagReader, required=REQUIRED_TOPICS) -> dict[str, str]:
                                f"{sorted(reader.topics)}", "MISSING_TOPIC")
             continue
         name = sorted(names, key=len)[0]
+        if not reader.topics[name].schema_text:
+            raise BagError(f"{reader.path}: topic '{name}' has no schema (its channel names none), so it cannot "
+                           "be decoded; re-record it or run `skillgen bag reindex` on a copy that has one", "NO_SCHEMA")
         got = _norm_type(reader.topics[name].type)
         if got != want:
             raise BagError(f"{reader.path}: topic '{name}' has type {got}, expected {want}", "WRONG_TYPE")

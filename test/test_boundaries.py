@@ -287,3 +287,25 @@ def test_zero_augmentation_stays_zero_and_negative_means_the_default():
         node.destroy_node()
     finally:
         rclpy.shutdown(context=ctx)
+
+
+@pytest.mark.parametrize("exe,param", [
+    ("planner", "velocity_scale:=.nan"), ("planner", "dt:=.inf"), ("perception", "voxel:=.nan"),
+    ("perception", "max_cloud_age:=-1.0"), ("skill_replay", "action_noise:=.nan"), ("recorder", "max_chunk_age:=.nan"),
+    ("mock_driver", "control_hz:=.inf"), ("datagen", "timeout_plan:=.nan"), ("datagen", "action_noise:=-0.5"),
+])
+def test_a_bad_parameter_stops_the_node_with_a_reason(exe, param, ros_domain):
+    """NaN/inf/out-of-range node parameters are refused at start-up: exit 2, INVALID_PARAMETER naming
+    the parameter, no traceback (NaN once passed `not x > 0`-style checks written as `x <= 0`)."""
+    import subprocess
+    import sys
+
+    from conftest import REPO, node_env
+
+    r = subprocess.run([sys.executable, "-m", "skillgen_ros.cli.main", "run", exe, "--ros-args", "-p", param,
+                        "-p", "autostart:=false"] if exe == "recorder" else
+                       [sys.executable, "-m", "skillgen_ros.cli.main", "run", exe, "--ros-args", "-p", param],
+                       env=node_env(ros_domain), capture_output=True, text=True, timeout=120, cwd=REPO)
+    out = r.stdout + r.stderr
+    assert r.returncode == 2 and "INVALID_PARAMETER" in out and param.split(":=")[0] in out, out[-2000:]
+    assert "Traceback" not in out

@@ -76,10 +76,9 @@ class DatagenNode(Node):
             self._profile = get_profile(str(self.get_parameter("profile").value)).name
         except InvalidInputError as e:
             raise ParameterError(f"profile: {e}") from None
-        timeouts = {k: float(self.get_parameter(f"timeout_{k}").value) for k in TIMEOUTS}
-        if not all(0 < v < float("inf") for v in timeouts.values()):
-            raise ParameterError(f"timeouts must be finite and > 0, got {timeouts}")
         try:
+            timeouts = {k: V.finite(f"timeout_{k}", self.get_parameter(f"timeout_{k}").value, 0.0, 86_400.0,
+                                    lo_open=True) for k in TIMEOUTS}
             V.finite("action_noise", self.get_parameter("action_noise").value, 0.0, 1.0)
             V.finite("video_camera_hz", self.get_parameter("video_camera_hz").value, 0.0, 1000.0, lo_open=True)
         except InvalidInputError as e:

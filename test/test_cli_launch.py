@@ -236,3 +236,36 @@ def test_container_runs_several_nodes_in_one_process(ros_domain, tmp_path):
     finally:
         os.killpg(p.pid, signal.SIGINT)
         p.wait(30)
+
+
+def test_respawn_restarts_a_killed_node_and_the_graph_goes_on(ros_domain, tmp_path):
+    """`skillgen launch --respawn`: a node killed with SIGKILL is started again (a new process of the
+    same node), the rest keep running, and Ctrl-C still stops everything cleanly with the bag finalized."""
+    p = subprocess.Popen(SKILLGEN + ["launch", "mock_record", "--respawn"], env=node_env(ros_domain),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+                         start_new_session=True)
+    try:
+        assert wait_for(lambda: len(_children(p)) == 2 and _bags(tmp_path), 120), "the graph never came up"
+        victim = next(k for k in _children(p) if "mock_driver" in " ".join(k.cmdline()))
+        recorder = next(k for k in _children(p) if k.pid != victim.pid)
+        victim.kill()
+
+        def respawned() -> bool:
+            kids = []
+            for k in _children(p):
+                try:
+                    if k.status() != psutil.STATUS_ZOMBIE and "mock_driver" in " ".join(k.cmdline()):
+                        kids.append(k)
+                except psutil.Error:  # the killed one, gone or not yet reaped
+                    pass
+            return bool(kids) and all(k.pid != victim.pid for k in kids)
+        assert wait_for(respawned, 60), "mock_driver was not respawned"
+        assert p.poll() is None and recorder.is_running()  # the rest of the graph went on
+        p.send_signal(signal.SIGINT)
+        assert p.wait(60) == 0, p.stderr.read()
+        err = p.stderr.read()
+        assert "respawning it (1/" in err, err
+        assert len(_bags(tmp_path)) == 1 and _finalized(_bags(tmp_path)[0])
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)

@@ -4,7 +4,7 @@ Executables are resolved through the ament index (<prefix>/lib/skillgen_ros/<exe
 `ros2 run` does, and every child gets the loopback-only ROS environment and one math thread
 (rosenv.node_environment). `launch` starts a graph's nodes as separate processes, forwards
 Ctrl-C/SIGTERM to them, and if one dies on its own it names that node, stops the rest and exits
-non-zero. A node still running 15 s after the stop is named, asked for its stacks (SIGUSR1) and
+non-zero (with `--respawn` it starts the node again instead, like launch's respawn=True). A node still running 15 s after the stop is named, asked for its stacks (SIGUSR1) and
 terminated, like ros2 launch's SIGTERM/SIGKILL escalation.
 """
 from __future__ import annotations
@@ -53,12 +53,19 @@ def run(exe: str, args: list[str]) -> int:
     return 0  # not reached
 
 
-def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.1, stop_timeout: float = 15.0) -> int:
+RESPAWN_MAX = 10  # restarts per node before --respawn gives up on it (a crash loop is a failure)
+
+
+def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.1, stop_timeout: float = 15.0,
+           respawn: bool = False) -> int:
     """Run a graph until Ctrl-C or a node dies; a node still running `stop_timeout` s after the
-    stop is named, has its Python stacks dumped (SIGUSR1, runtime.py) and is terminated."""
+    stop is named, has its Python stacks dumped (SIGUSR1, runtime.py) and is terminated. With
+    `respawn` (launch's respawn=True) a node that dies is started again, up to RESPAWN_MAX times."""
     nodes = load_graph(graph)
     env = rosenv.node_environment(dict(os.environ))
     procs: list[tuple[str, subprocess.Popen]] = []
+    cmds: dict[str, list[str]] = {}
+    restarts: dict[str, int] = {}
     stopping = {"flag": False}
 
     def _forward(signum, _frame):
@@ -76,6 +83,7 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
             print(f"[launch] starting {proc.label}: {' '.join(cmd)}", file=sys.stderr, flush=True)
             child = subprocess.Popen(cmd, env=env, preexec_fn=_hold_stop_signals)
             procs.append((proc.label, child))
+            cmds[proc.label] = cmd
             if stopping["flag"]:  # the signal came while this one was starting: it missed the forward
                 child.send_signal(signal.SIGINT)
         failed: tuple[str, int] | None = None
@@ -84,11 +92,18 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
         while True:
             alive = [(name, p) for name, p in procs if p.poll() is None]
             if not stopping["flag"]:
-                for name, p in procs:
+                for i, (name, p) in enumerate(procs):
                     rc = p.poll()
-                    if rc is not None:
-                        failed = (name, rc)
-                        break
+                    if rc is None:
+                        continue
+                    if respawn and restarts.get(name, 0) < RESPAWN_MAX:
+                        restarts[name] = restarts.get(name, 0) + 1
+                        print(f"[launch] node '{name}' exited with code {rc}; respawning it "
+                              f"({restarts[name]}/{RESPAWN_MAX})", file=sys.stderr, flush=True)
+                        procs[i] = (name, subprocess.Popen(cmds[name], env=env, preexec_fn=_hold_stop_signals))
+                        continue
+                    failed = (name, rc)
+                    break
                 if failed:
                     print(f"[launch] node '{failed[0]}' exited with code {failed[1]}; stopping the graph",
                           file=sys.stderr, flush=True)

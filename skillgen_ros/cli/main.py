@@ -1,7 +1,7 @@
 """`skillgen` entry point: run, launch, bag, and the product's commands.
 
     skillgen run <exe> [--ros-args ...]     like `ros2 run skillgen_ros <exe>`
-    skillgen launch <graph>                 like `ros2 launch skillgen_ros skillgen.launch.py graph:=<graph>`
+    skillgen launch <graph> [--respawn]     like `ros2 launch skillgen_ros skillgen.launch.py graph:=<graph>`
     skillgen bag info <bag>                 like `ros2 bag info`
     skillgen graphs                         list the graphs in graphs.yaml
 
@@ -35,7 +35,9 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("args", nargs=argparse.REMAINDER)
     la = sub.add_parser("launch", help="start a named graph of nodes")
     la.add_argument("graph")
-    la.add_argument("ros_args", nargs=argparse.REMAINDER, help="extra --ros-args for every node")
+    la.add_argument("ros_args", nargs=argparse.REMAINDER,
+                    help="--respawn (restart a node that dies, like launch's respawn=True), then extra --ros-args "
+                         "for every node")
     sub.add_parser("graphs", help="list graphs")
     for name, (_, helptext) in DELEGATED.items():
         d = sub.add_parser(name, help=helptext, add_help=False)
@@ -56,8 +58,8 @@ def main(argv: list[str] | None = None) -> int:
         if ns.cmd == "launch":
             from skillgen_ros.cli.launcher import launch
 
-            extra = [a for a in ns.ros_args if a != "--ros-args"]
-            return launch(ns.graph, extra)
+            extra = [a for a in ns.ros_args if a not in ("--ros-args", "--respawn")]
+            return launch(ns.graph, extra, respawn="--respawn" in ns.ros_args)
         if ns.cmd == "graphs":
             from skillgen_ros.graphs import load_graphs
 

@@ -6,7 +6,8 @@ request afterwards, and whether any node logged a traceback.
 
     PYTHONPATH=$PWD python bench/reliability/run.py [--examples 200] [--only generate,plan_to_pose] [--fresh]
 
-Resumable: interfaces already in bench/results/reliability.json are skipped unless --fresh.
+Resumable: interfaces already in bench/results/reliability.json are skipped unless --fresh (or
+named in --only, which re-runs them).
 """
 from __future__ import annotations
 
@@ -61,10 +62,10 @@ def main() -> int:
     doc = json.loads(OUT.read_text()) if OUT.is_file() and not a.fresh else {}
     doc.setdefault("interfaces", {})
     wanted = [n for n in (a.only.split(",") if a.only else INTERFACES) if n]
-    todo = [n for n in wanted if n not in doc["interfaces"]]
+    todo = wanted if a.only else [n for n in wanted if n not in doc["interfaces"]]  # --only re-runs those
     with tempfile.TemporaryDirectory() as art, boundary_graphs(a.domain, Path(art)) as (calls, graphs):
         for name in todo:
-            doc["interfaces"][name] = _fuzz(calls, graphs, INTERFACES[name], a.examples)
+            doc["interfaces"][name] = {**_fuzz(calls, graphs, INTERFACES[name], a.examples), "examples_asked": a.examples}
             doc.update(command="PYTHONPATH=$PWD python bench/reliability/run.py " + " ".join(sys.argv[1:]),
                        machine=machine_info(),
                        total_cases=sum(v["cases"] for v in doc["interfaces"].values()),

@@ -75,7 +75,9 @@ RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 GRIPPER_WAIT_S = 1.5
 MAX_TRAJECTORY_POINTS = 200_000  # about an hour at 50 Hz: more is a mistake, not a motion
-MAX_TRAJECTORY_SECONDS = 3600.0  # a longer trajectory would hold the driver (lockstep: run) for hours
+# A planned motion lasts seconds; a longer trajectory is a mistake, and in lockstep (one thread) the
+# driver answers nothing else while it runs one (the fuzz bench found a 1 h goal blocking it 60 s+).
+MAX_TRAJECTORY_SECONDS = 120.0
 
 
 class DriverNode(Node):

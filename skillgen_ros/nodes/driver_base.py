@@ -77,7 +77,7 @@ GRIPPER_WAIT_S = 1.5
 MAX_TRAJECTORY_POINTS = 200_000  # about an hour at 50 Hz: more is a mistake, not a motion
 # A planned motion lasts seconds; a longer trajectory is a mistake, and in lockstep (one thread) the
 # driver answers nothing else while it runs one (the fuzz bench found a 1 h goal blocking it 60 s+).
-MAX_TRAJECTORY_SECONDS = 120.0
+MAX_TRAJECTORY_SECONDS = 60.0  # ten times the longest planned motion
 
 
 class DriverNode(Node):

@@ -24,6 +24,9 @@ U8, U32, U64 = (0, 255), (0, 2**32 - 1), (0, 2**64 - 1)
 I32, I64 = (-2**31, 2**31 - 1), (-2**63, 2**63 - 1)
 SPECIAL = [0.0, -0.0, -1.0, 1.0, 1e-300, 1e300, -1e300, float("nan"), float("inf"), float("-inf")]
 CALL_TIMEOUT = 60.0  # seconds before an unanswered request counts as a hang
+# execute_trajectory may legitimately run its longest accepted goal (60 s of motion; in lockstep with
+# the mock's cameras slower than real time) and answers the next goal after it: its own budget.
+ACTION_TIMEOUT = {"execute_trajectory": 240.0}
 
 
 def floats() -> st.SearchStrategy:
@@ -272,7 +275,8 @@ def call(calls_by_ns: dict, iface: Interface, request):
     if iface.kind == "service":
         return calls.service(iface.type, iface.ros_name, request, timeout=CALL_TIMEOUT)
     probe = iface.probe() if iface.probe is not None else None
-    return calls.goal(iface.type, iface.ros_name, request, timeout=CALL_TIMEOUT, probe=probe)
+    return calls.goal(iface.type, iface.ros_name, request, timeout=ACTION_TIMEOUT.get(iface.name, CALL_TIMEOUT),
+                      probe=probe)
 
 
 def still_serves(calls_by_ns: dict, iface: Interface) -> bool:

@@ -22,6 +22,7 @@ from mcap.reader import SeekingReader
 from mcap.records import Channel, Chunk, Header, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 
+from skillgen_ros.core.bag.mcap_io import open_bounded as _open, reader_pos
 from skillgen_ros.core.bag.schemas import split_type
 from skillgen_ros.core.bag.writer import METADATA_FILE
 from skillgen_ros.core.errors import BagError
@@ -82,38 +83,6 @@ class FileScan:
 _TAIL_ERRORS = (McapError, struct.error, EOFError, ValueError, OSError, RuntimeError, MemoryError, KeyError)
 
 
-class _BoundedFile:
-    """A read-only file whose reads never ask for more than the bytes left: an absurd length field
-    (a flipped bit in a record header) becomes a short read that mcap reports, instead of a
-    multi-gigabyte allocation (issue 19: MemoryError before this)."""
-
-    def __init__(self, f):
-        self._f = f
-        self._size = os.fstat(f.fileno()).st_size
-
-    def read(self, n: int = -1) -> bytes:
-        left = max(0, self._size - self._f.tell())
-        return self._f.read(left if n is None or n < 0 else min(n, left))
-
-    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
-        return self._f.seek(offset, whence)
-
-    def tell(self) -> int:
-        return self._f.tell()
-
-    def readable(self) -> bool:
-        return True
-
-    def seekable(self) -> bool:
-        return True
-
-
-def _open(path: Path):
-    """(raw file, bounded view) for mcap's readers."""
-    f = open(path, "rb")
-    return f, _BoundedFile(f)
-
-
 def stream_records(path: Path, scan: FileScan) -> Iterator[tuple[Channel, Message]]:
     """Stream every message in file order, filling `scan` (schemas, channels, metadata records,
     chunk compressions) as records arrive; stop quietly (scan.truncated) at a damaged tail."""
@@ -149,13 +118,6 @@ def stream_records(path: Path, scan: FileScan) -> Iterator[tuple[Channel, Messag
                     yield scan.channels[rec.channel_id], rec
             if isinstance(record, Header):
                 scan.library = record.library
-
-
-def reader_pos(f) -> int:
-    try:
-        return int(f.tell())
-    except (OSError, ValueError):
-        return -1
 
 
 def _is_finalized(path: Path) -> bool:

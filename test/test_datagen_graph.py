@@ -74,12 +74,14 @@ def test_bad_requests_are_rejected_with_a_reason(graph, tmp_path):
         (dict(initiation_candidates=-2), "INVALID_PARAMETER"),
         (dict(profile="fastest"), "UNKNOWN_PROFILE"),
         (dict(profile="paper", initiation_candidates=6), "INVALID_PARAMETER"),  # the paper tries one pose
-        (dict(output_dir="/proc/skillgen_cannot_write_here"), "UNWRITABLE_OUTPUT"),
+        (dict(output_dir="/proc/skillgen_cannot_write_here"), "OUTPUT_OUTSIDE_ROOTS"),  # not datagen's to write
+        (dict(output_dir=str(tmp_path / "a_file" / "out")), "UNWRITABLE_OUTPUT"),  # allowed, but cannot be made
         (dict(output_dir=str(existing)), "OUTPUT_EXISTS"),
         (dict(source_demos=str(tmp_path / "empty")), "NO_SOURCE_DEMOS"),
         (dict(source_demos=str(unannotated.parent)), None),  # some annotation error, named
     ]
     (tmp_path / "empty").mkdir()
+    (tmp_path / "a_file").write_text("a file, not a directory")
     for k, (goal, reason) in enumerate(cases):
         goal.setdefault("output_dir", str(tmp_path / f"out{k}"))
         res = _run(client, timeout=60, **goal)

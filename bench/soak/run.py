@@ -32,7 +32,9 @@ def _nodes(launcher_pid: int) -> dict:
     out = {}
     for k in psutil.Process(launcher_pid).children():
         try:
-            exe = Path(k.cmdline()[0]).name if k.cmdline() else str(k.pid)
+            cmd = k.cmdline()
+            exe = next((Path(c).name for c in cmd if "skillgen_ros" in c or "/bin/" in c and "python" not in c),
+                       Path(cmd[0]).name if cmd else str(k.pid))
             out[f"{exe}[{k.pid}]"] = (round(k.memory_info().rss / 2**20, 1), k.num_fds())
         except psutil.Error:
             pass

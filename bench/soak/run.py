@@ -71,7 +71,11 @@ def main() -> int:
         while not c.is_done() and (c.feedback() is None or c.feedback().attempts < 1):
             time.sleep(1.0)  # polling a long run's progress, not synchronisation
         warm = _nodes(g.pid)
+        series, step = [], max(1, a.attempts // 10)
         while not c.is_done():
+            fb = c.feedback()
+            if fb is not None and fb.attempts >= step * (len(series) + 1):  # RSS every tenth of the run
+                series.append({"attempts": int(fb.attempts), **{k: v[0] for k, v in _nodes(g.pid).items()}})
             time.sleep(2.0)
         end = _nodes(g.pid)
         res = c.result(timeout=60)
@@ -82,7 +86,7 @@ def main() -> int:
            "success_rate": round(res.successes / max(1, res.attempts), 4),
            "wilson95": _wilson(int(res.successes), int(res.attempts)),
            "rss_mib_after_warmup": {k: v[0] for k, v in warm.items()}, "rss_mib_end": {k: v[0] for k, v in end.items()},
-           "rss_growth_percent": growth, "max_rss_growth_percent": max(growth.values(), default=0.0),
+           "rss_growth_percent": growth, "rss_mib_series": series, "max_rss_growth_percent": max(growth.values(), default=0.0),
            "fds_after_warmup": {k: v[1] for k, v in warm.items()}, "fds_end": {k: v[1] for k, v in end.items()},
            "bag": res.bag_path, "dataset": res.dataset_path, "wall_seconds": round(time.monotonic() - t0, 1)}
     Path(a.out).write_text(json.dumps(doc, indent=2) + "\n")

@@ -52,10 +52,6 @@ from skillgen_ros.nodes.feedback import FeedbackThrottle
 from skillgen_ros.nodes.runtime import run_node
 
 
-# rclpy keeps a finished goal's result this long (default 900 s) for late get_result calls. A
-# replay's result holds every step's arrays: over a fast run that was ~0.3 MiB of RSS per attempt
-# (bench/soak). Clients ask for the result as soon as the goal is accepted, so a minute is plenty.
-RESULT_KEEP_S = 60
 MAX_ACTION_NOISE = 1.0  # sigma on normalized actions; beyond it a replay is noise, not the skill
 
 
@@ -85,8 +81,7 @@ class SkillReplayNode(Node):
         self.osc_pub = self.create_publisher(OscTarget, "osc_target", 10)
         self._busy = False
         self.server = ActionServer(self, ReplaySkill, "replay_skill", self._execute,
-                                   goal_callback=self._on_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT,
-                                   result_timeout=RESULT_KEEP_S)
+                                   goal_callback=self._on_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT)
         self.create_timer(0.1, self._on_watchdog)
         self.create_service(LoadDemos, "~/load_demos", self._on_load_demos)
 

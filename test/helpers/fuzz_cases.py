@@ -236,12 +236,14 @@ INTERFACES: dict[str, Interface] = {i.name: i for i in [
               lambda a: "goal never answered" if a[0] is None else (
                   "" if a[0] is False or (a[1] is not None and (a[1].error_code == 0 or a[1].error_string))
                   else "no result or no error string"),
-              ExecuteTrajectory.Goal, lambda a: a[0] is not None),
+              ExecuteTrajectory.Goal, lambda a: a[0] is not None,
+              probe=ExecuteTrajectory.Goal),  # empty: refused at once, safe to repeat until answered
     Interface("gripper_command", "action", Gripper, "gripper_command",
               st.builds(Gripper.Goal, position=floats(), max_effort=floats()),
               lambda a: "goal never answered" if a[0] is None else ("" if a[0] is False or a[1] is not None
                                                                     else "accepted, but no result"),
-              lambda: Gripper.Goal(position=0.04, max_effort=10.0), lambda a: a[1] is not None),
+              lambda: Gripper.Goal(position=0.04, max_effort=10.0), lambda a: a[1] is not None,
+              probe=lambda: Gripper.Goal(position=float("nan"))),  # refused at once (INVALID_GOAL)
     Interface("replay_skill", "action", ReplaySkill, "replay_skill", replay_goals(), _goal_problem,
               lambda: LoadDemos.Request(task="Square"), lambda r: r.success, probe=ReplaySkill.Goal),
     Interface("load_demos", "service", LoadDemos, "skill_replay/load_demos",

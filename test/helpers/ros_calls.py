@@ -80,6 +80,7 @@ class Calls:
         handle = fut.result()
         if not handle.accepted:
             return False, None
-        res = handle.get_result_async()
-        sleep_until_done(res, max(0.1, end - time.monotonic()))
-        return True, (res.result().result if res.done() else None)
+        # get_result is safe to repeat: resent every 5 s, so a lost answer (a result client not yet
+        # matched both ways, answered.py) costs a resend, not the whole budget
+        got = first_answer(handle.get_result_async, sleep_until_done, max(0.1, end - time.monotonic()), each=5.0)
+        return True, (got.result if got is not None else None)

@@ -31,6 +31,7 @@ from .mimicgen import check_subtasks, run_mimicgen
 from .outcome import GOAL_INFEASIBLE, FailureReason, motion_failure  # noqa: F401 (re-exported)
 from .profile import DEFAULT_PROFILE
 from .release import Feedback, ReleaseConfig, release_targets
+from .replay_noise import check_initial_states, run_replay_noise
 from .seeds import attempt_rng, scene_seed
 from .selection import make_strategy
 
@@ -336,31 +337,6 @@ class _Attempt:
                         f"skill {skill.index} replay failed: {reason}: {message}")
         self._budget()
 
-    def run_replay_noise(self) -> None:
-        j = int(self.rng_select.integers(len(self.demos)))
-        demo = self.demos[j]
-        self.chosen.append(j)
-        self.scene_seed = int(demo.scene_seed)
-        self.reset(demo.variant, int(demo.scene_seed))
-        skill_of = np.full(demo.num_steps, -1)
-        mp = np.ones(demo.num_steps, bool)
-        init = {}
-        for s in demo.skills:
-            skill_of[s.start_step:s.end_step] = s.index
-            mp[s.start_step:s.end_step] = False
-            init[s.index] = matrix_to_array(demo.ee_poses[s.start_step])
-        for m in demo.motions:
-            if m.next_skill is not None:
-                skill_of[m.start_step:m.end_step] = m.next_skill
-        t = time.perf_counter()
-        try:
-            for k in range(demo.num_steps):
-                si = int(skill_of[k])
-                lb = StepLabel(bool(mp[k]), si, j, init.get(si, matrix_to_array(demo.ee_poses[0])))
-                self._step(demo.action_poses[k], float(demo.gripper[k]), self.cfg.action_noise, lb)
-        finally:
-            self._timed("skill", t)
-
 
 def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: TaskLike, method: str,
                 index: int, seed: int, config: GenerationConfig = GenerationConfig()) -> AttemptResult:
@@ -374,10 +350,7 @@ def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: Ta
     if not source_demos:
         raise InvalidInputError("no source demos given", reason="NO_SOURCE_DEMOS")
     if method == "replay_noise":
-        for d in source_demos:
-            if d.scene_seed is None:
-                raise InvalidInputError(f"{d.source}: demo {d.name} has no scene seed, so Replay-Noise cannot "
-                                        "reset to its initial state", reason="NO_INITIAL_STATE")
+        check_initial_states(source_demos)
     else:
         for d in source_demos:
             for sk in task.skills:
@@ -388,7 +361,7 @@ def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: Ta
     reason, message = FailureReason.OK, "task succeeded"
     try:
         if method == "replay_noise":
-            a.run_replay_noise()
+            run_replay_noise(a)
         elif method == "mimicgen":
             run_mimicgen(a)
         else:

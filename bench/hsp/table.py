@@ -6,7 +6,10 @@ budget and sizes, training time), since a CPU budget is not robomimic's 200k ste
 """
 from __future__ import annotations
 
-METHODS = ("MimicGen-BC", "HSP-TAMP", "HSP-Class", "HSP-Reg")
+from bench.hsp.run import METHODS as _RUN_METHODS
+
+# the paper's Fig. 5 column order: the baseline first; the names are run.py's
+METHODS = ("MimicGen-BC",) + tuple(m for m in _RUN_METHODS if m != "MimicGen-BC")
 
 
 def _best(cell: dict, method: str) -> str:

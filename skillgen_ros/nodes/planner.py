@@ -133,6 +133,7 @@ class PlannerNode(Node):
                                          velocity_scale=p["velocity_scale"], dt=p["dt"], seed=seed)
         except InvalidInputError as e:
             raise ParameterError(str(e.args[0])) from None
+        self.planner.warm_up()
         self._boxes: dict[str, Box] = {}
         # Readers are made on the first request that needs them: a request with start_positions and
         # SOURCE_SCENE (datagen's) reads nothing, and a reader the driver must deliver every period

@@ -105,6 +105,7 @@ class SimGenerationEnv:
         self.cm = CollisionModel(self.kin)
         self.planner = MotionPlanner(self.kin, IKSolver(self.kin, rng=np.random.default_rng(config.seed)), self.cm,
                                      velocity_scale=config.velocity_scale, seed=config.seed)
+        self.planner.warm_up()
         self.scene = None
         self.grasps = GraspTracker()
         self._last_gripper, self._closing = -1.0, -1

@@ -119,6 +119,17 @@ class MotionPlanner:
         if seed is not None:
             self.reseed(seed)
 
+    def warm_up(self) -> None:
+        """Compile the numba kernels now (seconds on a fresh clone) instead of inside the first
+        plan, whose IK wall-time cap would cut the compile and answer IK_FAILED (CI, 2026-12-03)."""
+        q = 0.5 * (self.kin.lower + self.kin.upper)
+        rng, self.ik.rng = self.ik.rng, np.random.default_rng(0)
+        try:
+            self.ik.solve(self.kin.fk(q), seed_q=q, timeout=600.0, max_iterations=self.ik.chunk)
+        finally:
+            self.ik.rng = rng
+        self.cm.in_collision(q[None])
+
     def reseed(self, seed: int) -> None:
         """Restart the IK randomness: the k-th plan() after this draws its IK restarts from (seed, k)
         only. The IK solver's `rng` (shared with its other users) is replaced per call, and so is

@@ -38,7 +38,7 @@ from skillgen_interfaces.msg import OscTarget, SceneObject
 from skillgen_interfaces.srv import (CaptureCameras, EstimatePoses, LoadDemos, PlanToPose, ResetScene, StateHistory,
                                      TaskSuccess)
 from skillgen_ros.answered import first_answer
-from skillgen_ros.core.errors import SkillGenError
+from skillgen_ros.core.errors import NoAnswerError, SkillGenError
 from skillgen_ros.core.generation.episode import Observation
 from skillgen_ros.core.generation.grasp import CLOSE_PERIODS, GraspTracker, beliefs_along, grasp_step
 from skillgen_ros.core.geometry import Pose
@@ -50,8 +50,8 @@ from skillgen_ros.nodes.latest import LatestMessage, wait_future
 from skillgen_ros.nodes.state_history import DriverHistory, ns
 
 
-class GraphCallError(SkillGenError):
-    reason = "TIMEOUT"
+class GraphCallError(NoAnswerError):
+    """A call of the graph that went unanswered; its reason names the stage (PERCEPTION_FAILED, ...)."""
 
 
 class RosGraphEnv:
@@ -148,8 +148,23 @@ class RosGraphEnv:
         m = self._joints.wait_newer(after, timeout) if after >= 0 else self._joints.latest(timeout)
         return self._take_joints(m)
 
+    def _await_graph(self) -> None:
+        """Before an attempt: a server that has gone (its node killed, and restarted by `skillgen
+        launch --respawn`) is waited for up to timeout_recover s, so the run's attempts are not spent
+        while it comes back; still missing, this attempt fails (TIMEOUT) naming it (issue 19, chaos)."""
+        wait = float(self.t.get("recover", 0.0))
+        servers = (self.reset_cli, self.success_cli, self.estimate_cli, self.plan_cli)
+        if wait <= 0 or (all(c.service_is_ready() for c in servers) and self.replay_ac.server_is_ready()):
+            return
+        self.node.get_logger().warning(f"a server of the graph is gone; waiting up to {wait:.0f} s for it")
+        missing = self.wait_ready(wait)
+        if missing:
+            raise GraphCallError(f"not available after {wait:.0f} s: {', '.join(missing)}", reason="TIMEOUT")
+        self.node.get_logger().info("every server of the graph answers again")
+
     # -- GenerationEnv
     def reset(self, task: str, variant: str, seed: int):
+        self._await_graph()
         req = ResetScene.Request(task=task, variant=variant, seed=int(seed))
         _, count = self._joints.snapshot()  # the driver publishes the reset state before it answers
         resp = self._call(self.reset_cli, req, self.t["reset"], "reset_scene", "TIMEOUT")

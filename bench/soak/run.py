@@ -62,6 +62,11 @@ def main() -> int:
     from skillgen_ros.cli.launcher import graph_client
     from skillgen_ros.client import SkillGenClient
 
+    if "ROS_DOMAIN_ID" not in os.environ:  # a domain of our own (lock-file lease), not the default 0
+        from skillgen_ros.testing.domains import acquire_domain
+
+        lease = acquire_domain()
+        os.environ["ROS_DOMAIN_ID"] = str(lease.id)
     run_dir = os.path.abspath(a.output or os.path.join("out", f"soak_{time.strftime('%Y%m%d-%H%M%S')}"))
     roots = ["--ros-args", "-p", f"writable_roots:=['{run_dir}']"]
     t0 = time.monotonic()
@@ -81,6 +86,7 @@ def main() -> int:
         res = c.result(timeout=60)
     growth = {k: round(100.0 * (end[k][0] - warm[k][0]) / warm[k][0], 1) for k in warm if k in end and warm[k][0]}
     doc = {"command": "PYTHONPATH=$PWD python bench/soak/run.py " + " ".join(sys.argv[1:]),
+           "command_issue_size": "PYTHONPATH=$PWD python bench/soak/run.py --attempts 1000 --out bench/results/soak_1000.json",
            "machine": machine_info(), "task": a.task, "variant": a.variant, "seed": a.seed,
            "attempts": int(res.attempts), "successes": int(res.successes), "reason": res.reason,
            "success_rate": round(res.successes / max(1, res.attempts), 4),

@@ -113,7 +113,7 @@ def _save(path: Path, doc: dict, kills: list, a, victims) -> None:
     doc["chaos"] = {
         "command": "PYTHONPATH=$PWD python bench/chaos/run.py " + " ".join(sys.argv[1:]),
         "machine": machine_info(),
-        "goal": "Square D0 skillgen, 2 successes (at most 20 attempts), record_bag; the kill lands after attempt 1",
+        "goal": "Square D0 skillgen, 3 successes (at most 20 attempts), record_bag; the kill lands once attempt 0 is done",
         "summary": {"kills": len(kills), "survived_nothing_lost": sum(bool(k["survived"]) for k in kills),
                     "per_victim": per},
         "kills": kills,

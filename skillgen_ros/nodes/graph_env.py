@@ -99,6 +99,7 @@ class RosGraphEnv:
         self.last_estimate: tuple[int, dict] | None = None  # (cloud stamp ns, what perception returned)
         self._skill_object: str | None = None
         self.grasps = GraspTracker()
+        self._seen: set[str] = set()  # servers seen ready before an attempt (_await_graph waits for gone ones)
 
     # -- subscriptions
     def _take_joints(self, m) -> bool:
@@ -149,18 +150,30 @@ class RosGraphEnv:
         return self._take_joints(m)
 
     def _await_graph(self) -> None:
-        """Before an attempt: a server that has gone (its node killed, and restarted by `skillgen
-        launch --respawn`) is waited for up to timeout_recover s, so the run's attempts are not spent
-        while it comes back; still missing, this attempt fails (TIMEOUT) naming it (issue 19, chaos)."""
+        """Before an attempt: a server seen before that has gone (its node killed, and restarted by
+        `skillgen launch --respawn`) is waited for up to timeout_recover s, so the run's attempts are
+        not spent while it comes back; still gone, this attempt fails (TIMEOUT) naming it (issue 19)."""
         wait = float(self.t.get("recover", 0.0))
-        servers = (self.reset_cli, self.success_cli, self.estimate_cli, self.plan_cli)
-        if wait <= 0 or (all(c.service_is_ready() for c in servers) and self.replay_ac.server_is_ready()):
+        ready = {name for name, cli in self._servers().items()
+                 if (cli.server_is_ready() if hasattr(cli, "server_is_ready") else cli.service_is_ready())}
+        gone = sorted(self._seen - ready)
+        self._seen |= ready
+        if wait <= 0 or not gone:
             return
-        self.node.get_logger().warning(f"a server of the graph is gone; waiting up to {wait:.0f} s for it")
-        missing = self.wait_ready(wait)
-        if missing:
-            raise GraphCallError(f"not available after {wait:.0f} s: {', '.join(missing)}", reason="TIMEOUT")
-        self.node.get_logger().info("every server of the graph answers again")
+        self.node.get_logger().warning(f"{', '.join(gone)} gone; waiting up to {wait:.0f} s for it to come back")
+        end = time.monotonic() + wait
+        for name in gone:
+            cli = self._servers()[name]
+            left = max(0.1, end - time.monotonic())
+            back = cli.wait_for_server(timeout_sec=left) if hasattr(cli, "wait_for_server") else \
+                cli.wait_for_service(timeout_sec=left)
+            if not back:
+                raise GraphCallError(f"{name} gone and not back within {wait:.0f} s", reason="TIMEOUT")
+        self.node.get_logger().info(f"{', '.join(gone)} back")
+
+    def _servers(self) -> dict:
+        return {"reset_scene": self.reset_cli, "task_success": self.success_cli, "estimate_poses": self.estimate_cli,
+                "plan_to_pose": self.plan_cli, "replay_skill": self.replay_ac}
 
     # -- GenerationEnv
     def reset(self, task: str, variant: str, seed: int):

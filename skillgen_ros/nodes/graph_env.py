@@ -18,7 +18,9 @@ measured states of the driver's trajectory periods (state_history); a driver wit
 (a real robot) gets the planned trajectory sampled at the control rate (commanded states, FK
 through pinocchio). Skill steps are the measured states skill_replay saw.
 Every call has a timeout; a node that does not answer becomes a failure with a reason
-(PERCEPTION_FAILED, PLAN_FAILED, SKILL_FAILED, TIMEOUT) instead of a hang.
+(PERCEPTION_FAILED, PLAN_FAILED, SKILL_FAILED, TIMEOUT) instead of a hang, and the run goes on:
+before each attempt a server seen before that has gone (a node killed and being respawned) is
+waited for up to timeout_recover s (issue 19, chaos).
 """
 from __future__ import annotations
 

@@ -23,6 +23,8 @@ import h5py
 # The processes of graphs.yaml's datagen graph, by executable (the container runs sim_driver and
 # skill_replay), and the reasons an attempt that needed the killed one fails with: graph_env turns
 # a call nobody answers into its stage's reason; the recorder and datagen are in no attempt's path.
+# An attempt may also come through: a call that is safe to repeat (estimate_poses, reset_scene) is
+# resent every 5 s, and the respawned node answers it.
 VICTIMS = ("perception", "planner", "container", "recorder", "datagen")
 IN_FLIGHT_REASONS = {
     "perception": {"PERCEPTION_FAILED"},
@@ -120,6 +122,7 @@ class KillRecord:
     in_flight: int = -1  # index of the attempt running when the process died
     reasons: dict = field(default_factory=dict)  # attempt index -> reason, from the files
     successes_after: int = 0  # demos from attempts after the in-flight one
+    stage_failures: int = 0  # attempts from the in-flight one on that failed with the killed stage's reason
     bag_messages: int = 0
     bag_recovered: bool = False
     respawn_seconds: float = 0.0
@@ -192,10 +195,9 @@ def kill_mid_run(launcher_pid: int, make_client: Callable, victim: str, out: Pat
         if files is not None and files.attempts < rec.in_flight - first_index:
             rec.problems.append(f"{rec.in_flight - first_index} attempts were reported done, the files hold {files.attempts}")
     elif files is not None:
-        wanted = IN_FLIGHT_REASONS[victim]
-        after = files.after(rec.in_flight)
-        if wanted and not wanted & set(after.values()):
-            rec.problems.append(f"no attempt from {rec.in_flight} on failed with {sorted(wanted)}: {after}")
+        rec.stage_failures = sum(r in IN_FLIGHT_REASONS[victim] for r in files.after(rec.in_flight).values())
+        if rec.in_flight not in files.reasons:
+            rec.problems.append(f"the attempt in flight ({rec.in_flight}) is in neither file")
         if rec.successes_after < 1:
             rec.problems.append("no success after the kill")
     try:

@@ -52,6 +52,11 @@ from skillgen_ros.nodes.latest import LatestMessage, wait_future
 from skillgen_ros.nodes.state_history import DriverHistory, ns
 
 
+# A server that has gone: the reason the attempt fails with if it does not come back in time.
+_GONE_REASON = {"reset_scene": "TIMEOUT", "task_success": "TIMEOUT", "estimate_poses": "PERCEPTION_FAILED",
+                "plan_to_pose": "PLAN_FAILED", "replay_skill": "SKILL_FAILED"}
+
+
 class GraphCallError(NoAnswerError):
     """A call of the graph that went unanswered; its reason names the stage (PERCEPTION_FAILED, ...)."""
 
@@ -154,7 +159,7 @@ class RosGraphEnv:
     def _await_graph(self) -> None:
         """Before an attempt: a server seen before that has gone (its node killed, and restarted by
         `skillgen launch --respawn`) is waited for up to timeout_recover s, so the run's attempts are
-        not spent while it comes back; still gone, this attempt fails (TIMEOUT) naming it (issue 19)."""
+        not spent while it comes back; still gone, this attempt fails with its stage's reason (issue 19)."""
         wait = float(self.t.get("recover", 0.0))
         ready = {name for name, cli in self._servers().items()
                  if (cli.server_is_ready() if hasattr(cli, "server_is_ready") else cli.service_is_ready())}
@@ -169,8 +174,8 @@ class RosGraphEnv:
             left = max(0.1, end - time.monotonic())
             back = cli.wait_for_server(timeout_sec=left) if hasattr(cli, "wait_for_server") else \
                 cli.wait_for_service(timeout_sec=left)
-            if not back:
-                raise GraphCallError(f"{name} gone and not back within {wait:.0f} s", reason="TIMEOUT")
+            if not back:  # the reason its stage's call would have failed with
+                raise GraphCallError(f"{name} gone and not back within {wait:.0f} s", reason=_GONE_REASON[name])
         self.node.get_logger().info(f"{', '.join(gone)} back")
 
     def _servers(self) -> dict:

@@ -86,8 +86,7 @@ def main() -> int:
         return c
 
     with graph_client("datagen", lambda: SkillGenClient(domain_id=lease.id), "datagen 'generate'", 600,
-                      ros_args=roots, respawn=True) as (g, probe):
-        probe.close()
+                      ros_args=roots, respawn=True) as (g, _probe):
         for r, v in todo:
             out = run_dir / f"{v}_{r}"
             rec = chaos.kill_mid_run(g.pid, client, v, out, seed=r, stop_recording=lambda: _stop_recording(lease.id))

@@ -181,11 +181,17 @@ def graph_client(graph: str, make_client, server: str, startup_timeout: float, r
                                 reason="GRAPH_NOT_READY")
         yield proc, client
     finally:
-        if client is not None:
-            client.close()
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(30)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
+        try:
+            if client is not None:
+                client.close()
+        finally:  # the graph is stopped even if closing the client fails
+            _stop_graph(proc)
+
+
+def _stop_graph(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(30)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)

@@ -106,6 +106,7 @@ class RosGraphEnv:
         self.last_estimate: tuple[int, dict] | None = None  # (cloud stamp ns, what perception returned)
         self._skill_object: str | None = None
         self.grasps = GraspTracker()
+        self._reset_ns: int | None = None  # stamp of this attempt's reset state (_check_driver)
         self._seen: set[str] = set()  # servers seen ready before an attempt (_await_graph waits for gone ones)
 
     # -- subscriptions
@@ -194,6 +195,7 @@ class RosGraphEnv:
         self._plan_seed, self._plans = int(seed), 0
         self.scene_objects = list(resp.objects)
         self._cloud_floor = resp.joint_state.header.stamp  # the reset published frames of this state
+        self._reset_ns = ns(resp.joint_state.header.stamp)
         self._moved = False
         if task != self._task_sent:  # latched: perception keeps it (and builds its models once)
             self.task_pub.publish(String(data=task))
@@ -371,6 +373,8 @@ class RosGraphEnv:
         resp = self._call(self.plan_cli, req, self.t["plan"] + self.t["execute"], "plan_to_pose", "PLAN_FAILED",
                           idempotent=False)  # it moves the robot
         status = resp.status_name or str(resp.status)
+        if resp.status == PlanToPose.Response.EXECUTION_FAILED:
+            self._check_driver()  # a driver gone mid-trajectory is not a collision
         executed = resp.status in (PlanToPose.Response.SUCCESS, PlanToPose.Response.EXECUTION_FAILED)
         if executed and start is not None and self.history.ready():
             obs = self._executed_periods(ns(start.header.stamp))  # measured, as the in-process env records
@@ -475,7 +479,17 @@ class RosGraphEnv:
             raise GraphCallError("driver did not step after an osc_target", reason="TIMEOUT")
         return self.observe()
 
+    def _check_driver(self) -> None:
+        """A sim driver that restarted during the attempt (killed and respawned: its clock starts
+        again, so its states are stamped before this attempt's reset) holds a fresh world, not this
+        attempt's: the attempt fails with TIMEOUT saying so, rather than as a failed task or motion."""
+        m = self._joints.latest()
+        if m is not None and self._reset_ns is not None and ns(m.header.stamp) < self._reset_ns:
+            raise GraphCallError("the driver restarted during the attempt (its clock went back); its world is "
+                                 "not this attempt's", reason="TIMEOUT")
+
     def task_success(self) -> bool:
+        self._check_driver()
         resp = self._call(self.success_cli, TaskSuccess.Request(), self.t["reset"], "task_success", "TIMEOUT")
         return bool(resp.success)
 

@@ -38,10 +38,10 @@ def graph(tmp_path_factory):
     lease = acquire_domain()
     root = tmp_path_factory.mktemp("chaos")
     env = node_env(lease.id)
+    log = open(root / "launch.log", "wb")  # the launcher's and every node's output, for a failure's post-mortem
     p = subprocess.Popen(SKILLGEN + ["launch", "datagen", "--respawn", "--ros-args", "-p",
                                      f"datagen:writable_roots:=['{root}']", *FAST_TIMEOUTS],
-                         env=env, stdout=subprocess.DEVNULL, stderr=open(root / "launch.log", "wb"), cwd=REPO,
-                         start_new_session=True)
+                         env=env, stdout=subprocess.DEVNULL, stderr=log, cwd=REPO, start_new_session=True)
     try:
         yield p, lease.id, root
     finally:
@@ -52,6 +52,7 @@ def graph(tmp_path_factory):
             except subprocess.TimeoutExpired:
                 os.killpg(p.pid, signal.SIGKILL)
                 p.wait()
+        log.close()
         lease.release()
 
 

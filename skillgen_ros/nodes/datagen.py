@@ -248,6 +248,9 @@ class DatagenNode(Node):
             req = self._request(request)
             req = RunRequest(**{**req.__dict__, "attempts": 1, "first_index": int(request.index)})
             validate_request(req, TASK_NAMES)
+            missing = self.env.wait_ready(5.0)  # as a call would wait for its server (graph_env._call)
+            if missing:  # a graph without these cannot run an attempt: the request is refused, as generate's is
+                raise SkillGenError(f"not available: {', '.join(missing)}", reason="GRAPH_NOT_READY")
             run = run_generation(self.env, self._demos(req), get_task(req.task), req, write_report=False)
             r = run.results[0]
             response.accepted, response.success = True, r.success

@@ -196,3 +196,51 @@ def test_selection_strategies(demos):
     with pytest.raises(InvalidInputError) as e:
         make_strategy("nearest_neighbor", k=3)
     assert e.value.reason == "INVALID_PARAMETER"
+
+
+@pytest.mark.parametrize("method", ["skillgen", "mimicgen", "replay_noise"])
+def test_a_node_gone_at_reset_or_success_check_fails_the_attempt_not_the_run(demos, method):
+    """A node of the graph that stops answering (killed: issue 19's chaos) fails the attempt in
+    flight with a reason; a request error from the same call (an unknown variant) still raises."""
+    from skillgen_ros.core.errors import NoAnswerError
+
+    class DeadDriver(FakeWorld):
+        def reset(self, task, variant, seed):
+            raise NoAnswerError("reset_scene: no answer from reset_scene within 30.0 s")
+
+    class DeadAtTheEnd(FakeWorld):
+        def task_success(self):
+            raise NoAnswerError("task_success: service task_success is not available")
+
+    class LostPerception(FakeWorld):  # a stage's reason comes through as it is
+        def reset(self, task, variant, seed):
+            raise NoAnswerError("no answer", reason="PERCEPTION_FAILED")
+
+    for world, reason in ((DeadDriver(), FailureReason.TIMEOUT), (DeadAtTheEnd(), FailureReason.TIMEOUT),
+                          (LostPerception(), FailureReason.PERCEPTION_FAILED)):
+        r = run_attempt(world, demos, TASK, method, 0, 5, CFG)
+        assert not r.success and r.reason is reason and "did not answer" in r.message, (world, r.message)
+
+    class BadVariant(FakeWorld):
+        def reset(self, task, variant, seed):
+            raise SkillGenError("reset_scene: unknown variant", reason="UNKNOWN_VARIANT")
+
+    with pytest.raises(SkillGenError, match="UNKNOWN_VARIANT"):
+        run_attempt(BadVariant(), demos, TASK, method, 0, 5, CFG)
+
+
+def test_a_run_keeps_no_episode_after_writing_it(demos, tmp_path):
+    """issue 19's soak: RunResult held every attempt's arrays (+0.3 MiB per attempt in datagen)."""
+    import h5py
+
+    from skillgen_ros.core.generation.session import RunRequest, run_generation
+
+    req = RunRequest(task="pick_place", variant="D1", attempts=3, seed=3, output_dir=str(tmp_path / "run"),
+                     video_attempts=0)
+    run = run_generation(FakeWorld(), demos, TASK, req, write_report=False)
+    assert run.attempts == 3 and run.successes == 3 and all(r.episode is None for r in run.results)
+    with h5py.File(tmp_path / "run" / "demo.hdf5", "r") as f:
+        assert len(f["data"]) == 3 and all(f["data"][k]["actions"].shape[0] > 0 for k in f["data"])
+    kept = run_generation(FakeWorld(), demos, TASK, RunRequest(**{**req.__dict__, "output_dir": str(tmp_path / "k")}),
+                          write_report=False, keep_episodes=True)
+    assert all(r.episode.num_samples > 0 for r in kept.results)

@@ -22,7 +22,7 @@ def _run(square, out, variant="D1", **kw):
     env = SimGenerationEnv(SimEnvConfig(perception="ground_truth"))
     try:
         req = RunRequest(task="Square", variant=variant, output_dir=str(out), video_attempts=0, **kw)
-        return run_generation(env, demos, task, req, write_report=False, keep_timings=False)
+        return run_generation(env, demos, task, req, write_report=False, keep_timings=False, keep_episodes=True)
     finally:
         env.close()
 

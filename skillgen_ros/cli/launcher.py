@@ -158,12 +158,15 @@ def _wait_all(procs, timeout: float) -> None:
 
 
 @contextmanager
-def graph_client(graph: str, make_client, server: str, startup_timeout: float, ros_args: list[str] | None = None):
+def graph_client(graph: str, make_client, server: str, startup_timeout: float, ros_args: list[str] | None = None,
+                 respawn: bool = False):
     """Launch `graph` (`skillgen launch`) in its own session, yield an action client once `server`
     answers, and stop the graph on exit (SIGINT, which the launcher forwards to every node once;
     SIGKILL to the session after 30 s). GRAPH_DIED / GRAPH_NOT_READY if it never comes up.
-    ros_args ("--ros-args", "-p", "node:name:=value", ...) reach every node, as `skillgen launch`'s do."""
-    proc = subprocess.Popen([sys.executable, "-m", "skillgen_ros.cli.main", "launch", graph, *(ros_args or [])],
+    ros_args ("--ros-args", "-p", "node:name:=value", ...) reach every node, as `skillgen launch`'s do;
+    `respawn` restarts a node that dies (`--respawn`)."""
+    proc = subprocess.Popen([sys.executable, "-m", "skillgen_ros.cli.main", "launch", graph,
+                             *(["--respawn"] if respawn else []), *(ros_args or [])],
                             env=rosenv.ros_environment(dict(os.environ)), start_new_session=True)
     client = None
     try:
@@ -178,11 +181,17 @@ def graph_client(graph: str, make_client, server: str, startup_timeout: float, r
                                 reason="GRAPH_NOT_READY")
         yield proc, client
     finally:
-        if client is not None:
-            client.close()
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(30)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
+        try:
+            if client is not None:
+                client.close()
+        finally:  # the graph is stopped even if closing the client fails
+            _stop_graph(proc)
+
+
+def _stop_graph(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(30)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)

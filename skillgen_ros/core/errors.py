@@ -45,6 +45,13 @@ class ParameterError(SkillGenError):
     reason = "INVALID_PARAMETER"
 
 
+class NoAnswerError(SkillGenError):
+    """A node of the graph did not answer in time (killed, crashed, restarting, or overloaded): the
+    attempt in flight fails with this reason, the run goes on (issue 19, chaos). Never a request error."""
+
+    reason = "TIMEOUT"
+
+
 class CheckpointError(SkillGenError):
     """A policy checkpoint that is missing, unreadable, not ours, or for another task/observation layout."""
 

@@ -12,7 +12,8 @@ observation_source (ground_truth: the sim's true object poses in obs/<id>_pose; 
 (the algorithm profile, core/generation/profile.py: paper or skillgen_ros; a goal's `profile` overrides it),
 release.* (how the hand lets go before a planned motion: core/generation/release.py), driver_node and
 video_camera_hz (the driver's camera rate while an attempt is filmed), and the per-call timeouts
-(timeout_reset, timeout_perception, timeout_plan, timeout_execute, timeout_skill, timeout_state).
+(timeout_reset, timeout_perception, timeout_plan, timeout_execute, timeout_skill, timeout_state), and
+timeout_recover (before an attempt, how long a server that has gone is waited for: a node restarting).
 """
 from __future__ import annotations
 
@@ -43,7 +44,8 @@ from skillgen_ros.nodes.graph_env import RosGraphEnv
 from skillgen_ros.nodes.runtime import run_node
 
 MAX_ATTEMPTS = 1_000_000  # per goal; a larger count is a typo, not a run
-TIMEOUTS = {"reset": 30.0, "perception": 20.0, "plan": 10.0, "execute": 60.0, "skill": 120.0, "state": 10.0}
+TIMEOUTS = {"reset": 30.0, "perception": 20.0, "plan": 10.0, "execute": 60.0, "skill": 120.0, "state": 10.0,
+            "recover": 120.0}  # recover: before an attempt, how long a gone server (a node restarting) is waited for
 # release.* parameters: `moves` switches unjam/follow/clear off; the rest are ReleaseConfig's fields
 _RELEASE_PARAMS = {"moves": True, **{f: getattr(ReleaseConfig(), f) for f in ReleaseConfig.__dataclass_fields__}}
 
@@ -246,6 +248,9 @@ class DatagenNode(Node):
             req = self._request(request)
             req = RunRequest(**{**req.__dict__, "attempts": 1, "first_index": int(request.index)})
             validate_request(req, TASK_NAMES)
+            missing = self.env.wait_ready(5.0)  # as a call would wait for its server (graph_env._call)
+            if missing:  # a graph without these cannot run an attempt: the request is refused, as generate's is
+                raise SkillGenError(f"not available: {', '.join(missing)}", reason="GRAPH_NOT_READY")
             run = run_generation(self.env, self._demos(req), get_task(req.task), req, write_report=False)
             r = run.results[0]
             response.accepted, response.success = True, r.success

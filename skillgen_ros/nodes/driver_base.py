@@ -46,7 +46,7 @@ from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
 from skillgen_ros.core.sim.commands import TrajectoryCode, TrajectoryError, validate_gripper, validate_osc_target
 from skillgen_ros.nodes import convert
 from skillgen_ros.nodes.driver_cameras import DriverCameras
-from skillgen_ros.nodes.feedback import FeedbackThrottle
+from skillgen_ros.nodes.feedback import RESULT_TIMEOUT_S, FeedbackThrottle
 
 PARAMS = {  # name: (default, description)
     "timing_mode": ("lockstep", "realtime (wall-clock timer) or lockstep (one period per osc_target / timeout)"),
@@ -144,10 +144,10 @@ class DriverNode(Node):
         self.create_service(StateHistory, "state_history", self._on_history, callback_group=cb)
         self.traj_server = ActionServer(self, ExecuteTrajectory, "execute_trajectory", self._exec_traj,
                                         goal_callback=self._one_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT,
-                                        callback_group=cb)
+                                        callback_group=cb, result_timeout=RESULT_TIMEOUT_S)
         self.grip_server = ActionServer(self, Gripper, "gripper_command", self._exec_gripper,
                                         goal_callback=self._one_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT,
-                                        callback_group=cb)
+                                        callback_group=cb, result_timeout=RESULT_TIMEOUT_S)
         wall_period = 1.0 / self.hz if self.mode == "realtime" else min(0.05, float(self.param("lockstep_timeout_s")))
         self.create_timer(wall_period, self._on_timer, callback_group=MutuallyExclusiveCallbackGroup())
         if self.param("initial_task"):

@@ -18,7 +18,9 @@ measured states of the driver's trajectory periods (state_history); a driver wit
 (a real robot) gets the planned trajectory sampled at the control rate (commanded states, FK
 through pinocchio). Skill steps are the measured states skill_replay saw.
 Every call has a timeout; a node that does not answer becomes a failure with a reason
-(PERCEPTION_FAILED, PLAN_FAILED, SKILL_FAILED, TIMEOUT) instead of a hang.
+(PERCEPTION_FAILED, PLAN_FAILED, SKILL_FAILED, TIMEOUT) instead of a hang, and the run goes on:
+before each attempt a server seen before that has gone (a node killed and being respawned) is
+waited for up to timeout_recover s (issue 19, chaos).
 """
 from __future__ import annotations
 
@@ -38,7 +40,7 @@ from skillgen_interfaces.msg import OscTarget, SceneObject
 from skillgen_interfaces.srv import (CaptureCameras, EstimatePoses, LoadDemos, PlanToPose, ResetScene, StateHistory,
                                      TaskSuccess)
 from skillgen_ros.answered import first_answer
-from skillgen_ros.core.errors import SkillGenError
+from skillgen_ros.core.errors import NoAnswerError, SkillGenError
 from skillgen_ros.core.generation.episode import Observation
 from skillgen_ros.core.generation.grasp import CLOSE_PERIODS, GraspTracker, beliefs_along, grasp_step
 from skillgen_ros.core.geometry import Pose
@@ -50,8 +52,13 @@ from skillgen_ros.nodes.latest import LatestMessage, wait_future
 from skillgen_ros.nodes.state_history import DriverHistory, ns
 
 
-class GraphCallError(SkillGenError):
-    reason = "TIMEOUT"
+# A server that has gone: the reason the attempt fails with if it does not come back in time.
+_GONE_REASON = {"reset_scene": "TIMEOUT", "task_success": "TIMEOUT", "estimate_poses": "PERCEPTION_FAILED",
+                "plan_to_pose": "PLAN_FAILED", "replay_skill": "SKILL_FAILED"}
+
+
+class GraphCallError(NoAnswerError):
+    """A call of the graph that went unanswered; its reason names the stage (PERCEPTION_FAILED, ...)."""
 
 
 class RosGraphEnv:
@@ -99,6 +106,8 @@ class RosGraphEnv:
         self.last_estimate: tuple[int, dict] | None = None  # (cloud stamp ns, what perception returned)
         self._skill_object: str | None = None
         self.grasps = GraspTracker()
+        self._reset_ns: int | None = None  # stamp of this attempt's reset state (_check_driver)
+        self._seen: set[str] = set()  # servers seen ready before an attempt (_await_graph waits for gone ones)
 
     # -- subscriptions
     def _take_joints(self, m) -> bool:
@@ -148,8 +157,35 @@ class RosGraphEnv:
         m = self._joints.wait_newer(after, timeout) if after >= 0 else self._joints.latest(timeout)
         return self._take_joints(m)
 
+    def _await_graph(self) -> None:
+        """Before an attempt: a server seen before that has gone (its node killed, and restarted by
+        `skillgen launch --respawn`) is waited for up to timeout_recover s, so the run's attempts are
+        not spent while it comes back; still gone, this attempt fails with its stage's reason (issue 19)."""
+        wait = float(self.t.get("recover", 0.0))
+        ready = {name for name, cli in self._servers().items()
+                 if (cli.server_is_ready() if hasattr(cli, "server_is_ready") else cli.service_is_ready())}
+        gone = sorted(self._seen - ready)
+        self._seen |= ready
+        if wait <= 0 or not gone:
+            return
+        self.node.get_logger().warning(f"{', '.join(gone)} gone; waiting up to {wait:.0f} s for it to come back")
+        end = time.monotonic() + wait
+        for name in gone:
+            cli = self._servers()[name]
+            left = max(0.1, end - time.monotonic())
+            back = cli.wait_for_server(timeout_sec=left) if hasattr(cli, "wait_for_server") else \
+                cli.wait_for_service(timeout_sec=left)
+            if not back:  # the reason its stage's call would have failed with
+                raise GraphCallError(f"{name} gone and not back within {wait:.0f} s", reason=_GONE_REASON[name])
+        self.node.get_logger().info(f"{', '.join(gone)} back")
+
+    def _servers(self) -> dict:
+        return {"reset_scene": self.reset_cli, "task_success": self.success_cli, "estimate_poses": self.estimate_cli,
+                "plan_to_pose": self.plan_cli, "replay_skill": self.replay_ac}
+
     # -- GenerationEnv
     def reset(self, task: str, variant: str, seed: int):
+        self._await_graph()
         req = ResetScene.Request(task=task, variant=variant, seed=int(seed))
         _, count = self._joints.snapshot()  # the driver publishes the reset state before it answers
         resp = self._call(self.reset_cli, req, self.t["reset"], "reset_scene", "TIMEOUT")
@@ -159,6 +195,7 @@ class RosGraphEnv:
         self._plan_seed, self._plans = int(seed), 0
         self.scene_objects = list(resp.objects)
         self._cloud_floor = resp.joint_state.header.stamp  # the reset published frames of this state
+        self._reset_ns = ns(resp.joint_state.header.stamp)
         self._moved = False
         if task != self._task_sent:  # latched: perception keeps it (and builds its models once)
             self.task_pub.publish(String(data=task))
@@ -336,6 +373,8 @@ class RosGraphEnv:
         resp = self._call(self.plan_cli, req, self.t["plan"] + self.t["execute"], "plan_to_pose", "PLAN_FAILED",
                           idempotent=False)  # it moves the robot
         status = resp.status_name or str(resp.status)
+        if resp.status == PlanToPose.Response.EXECUTION_FAILED:
+            self._check_driver()  # a driver gone mid-trajectory is not a collision
         executed = resp.status in (PlanToPose.Response.SUCCESS, PlanToPose.Response.EXECUTION_FAILED)
         if executed and start is not None and self.history.ready():
             obs = self._executed_periods(ns(start.header.stamp))  # measured, as the in-process env records
@@ -440,7 +479,17 @@ class RosGraphEnv:
             raise GraphCallError("driver did not step after an osc_target", reason="TIMEOUT")
         return self.observe()
 
+    def _check_driver(self) -> None:
+        """A sim driver that restarted during the attempt (killed and respawned: its clock starts
+        again, so its states are stamped before this attempt's reset) holds a fresh world, not this
+        attempt's: the attempt fails with TIMEOUT saying so, rather than as a failed task or motion."""
+        m = self._joints.latest()
+        if m is not None and self._reset_ns is not None and ns(m.header.stamp) < self._reset_ns:
+            raise GraphCallError("the driver restarted during the attempt (its clock went back); its world is "
+                                 "not this attempt's", reason="TIMEOUT")
+
     def task_success(self) -> bool:
+        self._check_driver()
         resp = self._call(self.success_cli, TaskSuccess.Request(), self.t["reset"], "task_success", "TIMEOUT")
         return bool(resp.success)
 

@@ -48,7 +48,7 @@ from skillgen_ros.core.skills.replay import plan_replay
 from skillgen_ros.core.skills.transform import matrix_to_array
 from skillgen_ros.core.tasks import get_task
 from skillgen_ros.nodes import convert
-from skillgen_ros.nodes.feedback import FeedbackThrottle
+from skillgen_ros.nodes.feedback import RESULT_TIMEOUT_S, FeedbackThrottle
 from skillgen_ros.nodes.runtime import run_node
 
 
@@ -81,7 +81,8 @@ class SkillReplayNode(Node):
         self.osc_pub = self.create_publisher(OscTarget, "osc_target", 10)
         self._busy = False
         self.server = ActionServer(self, ReplaySkill, "replay_skill", self._execute,
-                                   goal_callback=self._on_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT)
+                                   goal_callback=self._on_goal, cancel_callback=lambda _g: CancelResponse.ACCEPT,
+                                   result_timeout=RESULT_TIMEOUT_S)
         self.create_timer(0.1, self._on_watchdog)
         self.create_service(LoadDemos, "~/load_demos", self._on_load_demos)
 

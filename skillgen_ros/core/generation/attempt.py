@@ -17,7 +17,7 @@ from typing import Mapping, Protocol, Sequence
 
 import numpy as np
 
-from ..errors import InvalidInputError, SkillGenError
+from ..errors import InvalidInputError, NoAnswerError, SkillGenError
 from ..geometry import Pose
 from ..skills.actions import ActionScale, make_action, pose_to_delta_action
 from ..skills.augmentation import AugmentationConfig, perturb_initiation
@@ -100,7 +100,7 @@ class AttemptResult:
     message: str
     scene_seed: int
     source_demos: tuple[int, ...]  # per skill (replay_noise: the one demo)
-    episode: Episode
+    episode: Episode | None  # None in a RunResult once the dataset holds it (session.run_generation)
     timings: dict  # stage -> seconds: reset, perception, motion, skill, success, total
     initiation_candidates_used: tuple[int, ...] = ()  # skillgen: initiation poses tried, per skill reached
 
@@ -373,6 +373,9 @@ def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: Ta
             reason, message = FailureReason.TASK_FAILED, "all skills ran but the task success check failed"
     except _Fail as f:
         reason, message = f.reason, str(f)
+    except NoAnswerError as e:  # a node gone mid-attempt (reset, task_success): this attempt fails, the run goes on
+        reason = FailureReason(e.reason) if e.reason in FailureReason._value2member_map_ else FailureReason.TIMEOUT
+        message = f"a node did not answer: {e}"
     try:
         a.rec.resolve_from(getattr(env, "true_object_poses", None))
     except (SkillGenError, TimeoutError) as e:  # the steps cannot be recorded truthfully: keep none of them

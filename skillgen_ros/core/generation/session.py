@@ -8,6 +8,7 @@ dies leaves a valid partial dataset.
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from collections import Counter
@@ -112,6 +113,10 @@ class Progress:
 
 @dataclass
 class RunResult:
+    """Counts, files and per-attempt results. A result's `episode` is None once the dataset holds it
+    (unless run_generation was asked to keep them): a long run must not keep every attempt's
+    arrays in memory (issue 19's soak: +0.3 MiB per attempt)."""
+
     request: RunRequest
     results: list[AttemptResult] = field(default_factory=list)
     failures: Counter = field(default_factory=Counter)
@@ -134,11 +139,14 @@ class RunResult:
 def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: RunRequest,
                    on_progress: Callable[[Progress], None] | None = None,
                    should_stop: Callable[[], str] | None = None, write_report: bool = True,
-                   keep_timings: bool = True, before_attempt: Callable[[int], None] | None = None) -> RunResult:
+                   keep_timings: bool = True, before_attempt: Callable[[int], None] | None = None,
+                   keep_episodes: bool = False) -> RunResult:
     """Run the request's attempts over `env`; returns counts, files and the per-attempt results.
 
     should_stop() returning a non-empty reason ends the run cleanly after the current attempt;
     before_attempt(k) runs before the k-th attempt of the run (e.g. to record only some of them).
+    Each attempt's Episode is dropped from its result once the sink wrote it (keep_episodes=True
+    keeps them, for tests that compare attempts' arrays).
     """
     from ..dataset.report import RunSummary, write_report as _write_report
     from ..dataset.sink import AttemptSink, make_env_args
@@ -167,7 +175,7 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
             if capture:
                 clips.append((f"attempt {index}", r.success, env.stop_capture()))
             sink.add(r)
-            out.results.append(r)
+            out.results.append(r if keep_episodes else dataclasses.replace(r, episode=None))
             out.failures[r.reason.value] += 0 if r.success else 1
             done, succ = len(out.results), out.successes
             elapsed = time.perf_counter() - t0

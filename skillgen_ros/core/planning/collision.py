@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 import yaml
@@ -24,6 +25,7 @@ from ..geometry import invert
 from ..robot import HAND_LINK, TABLE_Z
 from . import kernels
 from .kinematics import LINKS, PandaKinematics
+from .occlusion import DepthView, hidden_space
 
 SPHERES_FILE = Path(__file__).with_name("panda_spheres.yaml")
 HAND = LINKS.index(HAND_LINK)
@@ -172,7 +174,7 @@ class CollisionModel:
 
     def set_point_cloud(self, points, self_filter_q=None, attached: AttachedObject | None = None,
                         filter_pad: float = 0.02, fill_below: bool = False,
-                        voxel: float = 0.01) -> int:
+                        voxel: float = 0.01, views: Sequence[DepthView] = ()) -> int:
         """Use `points` (N,3, world) as obstacles; returns how many are kept.
 
         Dropped: non-finite points, the table top (z <= table_z + 5 mm; the table is the
@@ -181,18 +183,34 @@ class CollisionModel:
         fill_below: treat the space under every observed point, down to the table, as occupied
         (the 2.5-D heightmap assumption of tabletop scenes: a camera sees the tops and fronts of
         objects, not their backs). Points are then voxelized at `voxel` metres.
+        views: the depth images the points came from (occlusion.DepthView); the space hidden
+        behind what they saw, unless another view saw it free, is occupied too (cells of `voxel`).
         """
         P = np.asarray(points, float).reshape(-1, 3)
         P = P[np.all(np.isfinite(P), axis=1)]
-        if self.table_z is not None:
-            P = P[P[:, 2] > self.table_z + 0.005]
-        if self_filter_q is not None and len(P):
-            C, R, _ = self._spheres_world(np.asarray(self_filter_q, float).reshape(1, 7), attached)
-            near = cKDTree(P).query_ball_point(C[0], R + filter_pad)
-            drop = np.unique(np.concatenate([np.asarray(i, int) for i in near] + [np.empty(0, int)]))
-            P = np.delete(P, drop, axis=0)
+        floor = self.table_z if self.table_z is not None else -np.inf
+        P = P[P[:, 2] > floor + 0.005]
+        on_robot = None
+        if self_filter_q is not None:
+            C, R = self._spheres_world(np.asarray(self_filter_q, float).reshape(1, 7), attached)[:2]
+
+            def on_robot(X):  # noqa: E306 -- inside some padded robot sphere
+                hit = np.zeros(len(X), bool)
+                if len(X):
+                    for i in cKDTree(X).query_ball_point(C[0], R + filter_pad):
+                        hit[i] = True
+                return hit
+            if len(P):
+                P = P[~on_robot(P)]
         if fill_below and len(P) and self.table_z is not None:
             P = heightmap_fill(P, self.table_z, voxel)
+        if len(views) and self.table_z is not None:
+            if self.cloud_margin < 0.5 * np.sqrt(3.0) * voxel:
+                raise InvalidInputError(f"cloud margin {self.cloud_margin} m does not cover a {voxel} m cell")
+            H = hidden_space(views, self.table_z, on_robot, voxel)
+            if on_robot is not None and len(H):
+                H = H[~on_robot(H)]
+            P = np.vstack([P, H])
         self.cloud = P
         self._trees = {}
         return len(P)

@@ -49,17 +49,23 @@ def _box_samples(n=4000, seed=0):
     return BOX_CENTRE + np.random.default_rng(seed).uniform(-BOX_HALF, BOX_HALF, (n, 3))
 
 
+def _uncovered(cm, pts, **kw):
+    """Fraction of the true box's volume farther than the cloud margin from every obstacle point."""
+    cm.set_point_cloud(pts, **kw)
+    d, _ = cKDTree(cm.cloud).query(_box_samples())
+    return float(np.mean(d >= cm.cloud_margin))
+
+
 def test_hidden_space_covers_the_whole_box_the_camera_saw_only_from_the_front(scene, cm):
-    """Every point of the true box (its unseen back half included) lies within the cloud margin
-    of the obstacle cloud; the observed surface points alone leave most of the back uncovered."""
+    """Every point of the true box lies within the cloud margin of the obstacle cloud: with the
+    heightmap and a hidden layer a few pixels deep (the default), and with all hidden space
+    (shadow_px=None). The heightmap alone leaves the strip at the far top edge uncovered (the
+    bench's collisions), the surfaces alone most of the box."""
     view, pts = scene
-    S = _box_samples()
-    cm.set_point_cloud(pts, views=[view])
-    d, _ = cKDTree(cm.cloud).query(S)
-    assert np.all(d < cm.cloud_margin)
-    cm.set_point_cloud(pts)  # the surfaces only
-    d, _ = cKDTree(cm.cloud).query(S)
-    assert np.mean(d >= cm.cloud_margin) > 0.5
+    assert _uncovered(cm, pts, fill_below=True, views=[view]) == 0.0
+    assert _uncovered(cm, pts, views=[view], shadow_px=None) == 0.0
+    assert _uncovered(cm, pts, fill_below=True) > 0.01
+    assert _uncovered(cm, pts) > 0.5
 
 
 def test_hidden_space_stays_out_of_space_the_camera_saw_free(scene):
@@ -68,7 +74,7 @@ def test_hidden_space_stays_out_of_space_the_camera_saw_free(scene):
     of a box pixel and no nearer the camera than that surface (less a cell); nothing is in front
     of the box (beyond the resolution margin, < 3 cm) or below the table."""
     view, _ = scene
-    H = hidden_space([view], floor=0.0)
+    H = hidden_space([view], floor=0.0)  # all of it: down to the table
     assert len(H)
     assert np.all(H[:, 0] < BOX_CENTRE[0] + BOX_HALF[0] + 0.03) and np.all(H[:, 2] > 0.0)
     box_px = view.points()[..., 2] > 0.005
@@ -98,9 +104,10 @@ def test_a_path_through_the_boxs_unseen_far_side_is_refused(scene, kin, cm):
     assert np.abs(b - a).max() < 0.5  # the same arm branch: a short sideways slide
     cm.set_point_cloud(pts, self_filter_q=Q_HOME)  # the robot's own space (its base) is no obstacle
     assert cm.check_motion(a, b)  # the defect: the unseen back is free space
-    cm.set_point_cloud(pts, self_filter_q=Q_HOME, views=[view])
-    assert cm.in_collision(a)[0] and cm.in_collision(b)[0]
-    assert not cm.check_motion(a, b)
+    for kw in (dict(fill_below=True), dict(shadow_px=None)):  # the default model; all hidden space
+        cm.set_point_cloud(pts, self_filter_q=Q_HOME, views=[view], **kw)
+        assert cm.in_collision(a)[0] and cm.in_collision(b)[0]
+        assert not cm.check_motion(a, b)
     high = q_at([0.50, 0.35, 0.32], down)
     assert cm.check_motion(high, q_at([0.50, 0.35, 0.12], down, seed=high))
 

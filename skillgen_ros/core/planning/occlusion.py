@@ -89,9 +89,9 @@ class DepthView:
 
 
 def _shadow_samples(view: DepthView, is_robot, floor: float, voxel: float, edge_px: int,
-                    max_shadow: float) -> np.ndarray:
+                    max_shadow: float, shadow_px: float | None) -> np.ndarray:
     """Points every `voxel` along each obstacle pixel's ray, from its (edge-dilated) surface
-    depth to the table plane."""
+    depth to the table plane, at most max_shadow (and shadow_px pixel footprints + a cell) deep."""
     P = view.points().reshape(-1, 3)
     d = view.depth.reshape(-1)
     src = np.isfinite(d)
@@ -104,10 +104,15 @@ def _shadow_samples(view: DepthView, is_robot, floor: float, voxel: float, edge_
     o = view.T_world_camera[:3, 3]
     live = np.isfinite(start)
     start, rays = start[live], rays[live]
-    end = start + max_shadow / np.linalg.norm(rays, axis=1)
+    norm = np.linalg.norm(rays, axis=1)
+    depth = np.full(len(start), max_shadow)
+    if shadow_px is not None:
+        f = float(max(view.K[0, 0], view.K[1, 1]))
+        depth = np.minimum(depth, shadow_px * start * norm / f + voxel)
+    end = start + depth / norm
     down = rays[:, 2] < 0
     end[down] = np.minimum(end[down], (floor - o[2]) / rays[down, 2])
-    step = voxel / np.linalg.norm(rays, axis=1)
+    step = voxel / norm
     n = np.maximum(0, np.floor((end - start) / step).astype(np.int64) + 1)
     idx = np.repeat(np.arange(len(n)), n)
     k = np.arange(len(idx)) - np.repeat(np.cumsum(n) - n, n)
@@ -154,12 +159,15 @@ def _certified_free(view: DepthView, C: np.ndarray, voxel: float, edge_px: int,
 
 def hidden_space(views: Sequence[DepthView], floor: float,
                  is_robot: Callable[[np.ndarray], np.ndarray] | None = None, voxel: float = 0.01,
-                 edge_px: int = 1, slope_px: float = 2.0, max_shadow: float = 1.0) -> np.ndarray:
+                 edge_px: int = 1, slope_px: float = 2.0, max_shadow: float = 1.0,
+                 shadow_px: float | None = None) -> np.ndarray:
     """(M,3) centres of the cells behind observed obstacle surfaces that no view saw free.
 
     floor: the table plane (z); is_robot: (N,3) -> bool for points on the robot itself (they cast
-    no shadow: the space behind the arm is the arm's own motion space)."""
-    samples = [_shadow_samples(v, is_robot, floor, voxel, edge_px, max_shadow) for v in views]
+    no shadow: the space behind the arm is the arm's own motion space). shadow_px: how deep the
+    shadow behind a surface is, in pixel footprints at its range (+ a cell); None = down to the
+    table (every hidden cell; at most max_shadow metres)."""
+    samples = [_shadow_samples(v, is_robot, floor, voxel, edge_px, max_shadow, shadow_px) for v in views]
     samples = np.vstack(samples + [np.empty((0, 3))])
     if not len(samples):
         return np.empty((0, 3))

@@ -9,8 +9,9 @@ For each depth view (a depth image with the intrinsics K and the pose it was tak
 1. shadow sources: pixels whose point is an obstacle (above the table, not the robot itself);
    their depth is min-filtered over `edge_px` pixels, so a ray that just missed an edge starts
    its shadow where the edge is (the edge lies between two rays);
-2. each source ray is marched from that depth to the table (at most `max_shadow` metres): the
-   cells it passes are candidates, dilated by one cell so that no cell falls between rays;
+2. each source pixel's rays (2x2 per pixel, so that neighbouring rays are closer than a cell)
+   are marched from that depth `shadow_px` pixel footprints deeper, or to the table: the cells
+   they pass are candidates;
 3. a candidate is carved (free) if some camera certifies the whole cell in front of what it saw:
    projected into that view, every pixel within the cell's footprint (+`edge_px`) saw a surface
    deeper than the cell by its half-diagonal plus `slope_px` pixel footprints at that range
@@ -29,7 +30,7 @@ from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
-from scipy.ndimage import binary_dilation, minimum_filter
+from scipy.ndimage import minimum_filter
 
 from ..errors import InvalidInputError
 
@@ -69,7 +70,10 @@ class DepthView:
     def rays(self) -> np.ndarray:
         """(H,W,3) world direction of each pixel's ray, scaled to unit optical z."""
         h, w = self.depth.shape
-        u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+        return self.rays_at(*np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float)))
+
+    def rays_at(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """World directions (..., 3) of the rays through pixel coordinates (u, v), unit optical z."""
         K = self.K
         r = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], -1)
         return r @ self.T_world_camera[:3, :3].T
@@ -88,22 +92,38 @@ class DepthView:
         return u, v, z
 
 
-def _shadow_samples(view: DepthView, is_robot, floor: float, voxel: float, edge_px: int,
+def _half_pixel_starts(S: np.ndarray):
+    """Rays every half pixel: at each pixel's centre, edge midpoints and corners. A ray starts at
+    the nearest source depth among the pixels it touches (inf if none), so a surface's shadow
+    reaches half a pixel past its last pixel (the edge lies somewhere before the next pixel's
+    centre; the cloud margin covers the other half), and neighbouring rays are closer than a cell.
+    Returns (start, u, v), each (2H+1, 2W+1)."""
+    h, w = S.shape
+    P = np.full((h + 2, w + 2), np.inf)
+    P[1:-1, 1:-1] = S
+    G = np.full((2 * h + 1, 2 * w + 1), np.inf)
+    G[1::2, 1::2] = S
+    G[0::2, 1::2] = np.minimum(P[:-1, 1:-1], P[1:, 1:-1])  # horizontal edges
+    G[1::2, 0::2] = np.minimum(P[1:-1, :-1], P[1:-1, 1:])  # vertical edges
+    G[0::2, 0::2] = np.minimum(np.minimum(P[:-1, :-1], P[1:, :-1]), np.minimum(P[:-1, 1:], P[1:, 1:]))
+    u, v = np.meshgrid(np.arange(2 * w + 1) * 0.5 - 0.5, np.arange(2 * h + 1) * 0.5 - 0.5)
+    return G, u, v
+
+
+def _shadow_samples(view: DepthView, is_robot, floor: float, voxel: float,
                     max_shadow: float, shadow_px: float | None) -> np.ndarray:
-    """Points every `voxel` along each obstacle pixel's ray, from its (edge-dilated) surface
-    depth to the table plane, at most max_shadow (and shadow_px pixel footprints + a cell) deep."""
+    """Points every half cell along the half-pixel rays of obstacle pixels, from the surface depth
+    to the table plane, at most max_shadow (and shadow_px pixel footprints + a cell) deep."""
     P = view.points().reshape(-1, 3)
     d = view.depth.reshape(-1)
     src = np.isfinite(d)
     src[src] = P[src, 2] > floor + 0.005
     if np.any(src) and is_robot is not None:
         src[src] = ~is_robot(P[src])
-    start = np.where(src, d, np.inf).reshape(view.depth.shape)
-    start = minimum_filter(start, size=2 * edge_px + 1, mode="constant", cval=np.inf).reshape(-1)
-    rays = view.rays().reshape(-1, 3)
-    o = view.T_world_camera[:3, 3]
+    start, u, v = _half_pixel_starts(np.where(src, d, np.inf).reshape(view.depth.shape))
     live = np.isfinite(start)
-    start, rays = start[live], rays[live]
+    start, rays = start[live], view.rays_at(u[live], v[live])
+    o = view.T_world_camera[:3, 3]
     norm = np.linalg.norm(rays, axis=1)
     depth = np.full(len(start), max_shadow)
     if shadow_px is not None:
@@ -112,7 +132,7 @@ def _shadow_samples(view: DepthView, is_robot, floor: float, voxel: float, edge_
     end = start + depth / norm
     down = rays[:, 2] < 0
     end[down] = np.minimum(end[down], (floor - o[2]) / rays[down, 2])
-    step = voxel / norm
+    step = 0.5 * voxel / norm
     n = np.maximum(0, np.floor((end - start) / step).astype(np.int64) + 1)
     idx = np.repeat(np.arange(len(n)), n)
     k = np.arange(len(idx)) - np.repeat(np.cumsum(n) - n, n)
@@ -121,13 +141,12 @@ def _shadow_samples(view: DepthView, is_robot, floor: float, voxel: float, edge_
 
 
 def _candidates(samples: np.ndarray, floor: float, voxel: float) -> np.ndarray:
-    """Centres of the cells holding a sample, dilated by one cell (26-neighbourhood)."""
+    """Centres of the cells holding a sample."""
     ij = np.floor(samples / voxel).astype(np.int64)
-    lo = ij.min(axis=0) - 1
+    lo = ij.min(axis=0)
     ij -= lo
-    grid = np.zeros(ij.max(axis=0) + 2, bool)
+    grid = np.zeros(ij.max(axis=0) + 1, bool)
     grid[ij[:, 0], ij[:, 1], ij[:, 2]] = True
-    grid = binary_dilation(grid, np.ones((3, 3, 3), bool))
     C = (np.argwhere(grid) + lo + 0.5) * voxel
     return C[C[:, 2] > floor - 0.5 * voxel]
 
@@ -167,7 +186,7 @@ def hidden_space(views: Sequence[DepthView], floor: float,
     no shadow: the space behind the arm is the arm's own motion space). shadow_px: how deep the
     shadow behind a surface is, in pixel footprints at its range (+ a cell); None = down to the
     table (every hidden cell; at most max_shadow metres)."""
-    samples = [_shadow_samples(v, is_robot, floor, voxel, edge_px, max_shadow, shadow_px) for v in views]
+    samples = [_shadow_samples(v, is_robot, floor, voxel, max_shadow, shadow_px) for v in views]
     samples = np.vstack(samples + [np.empty((0, 3))])
     if not len(samples):
         return np.empty((0, 3))

@@ -34,6 +34,7 @@ from scipy.ndimage import minimum_filter
 
 from ..errors import InvalidInputError
 
+JUMP_PX = 4.0  # neighbouring depths further apart than this many pixel footprints: an edge, not one surface
 MAX_FOOTPRINT_PX = 6  # a cell whose footprint is wider than this (very near a camera) is not certified
 
 
@@ -92,20 +93,32 @@ class DepthView:
         return u, v, z
 
 
-def _half_pixel_starts(S: np.ndarray):
-    """Rays every half pixel: at each pixel's centre, edge midpoints and corners. A ray starts at
-    the nearest source depth among the pixels it touches (inf if none), so a surface's shadow
-    reaches half a pixel past its last pixel (the edge lies somewhere before the next pixel's
-    centre; the cloud margin covers the other half), and neighbouring rays are closer than a cell.
-    Returns (start, u, v), each (2H+1, 2W+1)."""
+def _half_pixel_starts(S: np.ndarray, jump: np.ndarray):
+    """Rays every half pixel: at each pixel's centre, edge midpoints and corners. A ray between
+    pixels of one smooth surface (all sources, depths within `jump` of each other) starts at
+    their mean depth, on the surface; at a silhouette or a depth jump it starts at the nearest
+    one, so a surface's shadow reaches half a pixel past its last pixel (its edge lies somewhere
+    before the next pixel's centre; the cloud margin covers the other half). Neighbouring rays
+    are then closer than a cell. Returns (start, u, v), each (2H+1, 2W+1)."""
     h, w = S.shape
     P = np.full((h + 2, w + 2), np.inf)
     P[1:-1, 1:-1] = S
+    J = np.zeros((h + 2, w + 2))
+    J[1:-1, 1:-1] = jump
+
+    def pick(blocks, jumps):
+        D, Jm = np.stack(blocks), np.stack(jumps).max(axis=0)
+        lo, hi = D.min(axis=0), D.max(axis=0)
+        with np.errstate(invalid="ignore"):
+            smooth = np.isfinite(hi) & (hi - lo <= Jm)
+            return np.where(smooth, D.mean(axis=0), lo)
+
     G = np.full((2 * h + 1, 2 * w + 1), np.inf)
     G[1::2, 1::2] = S
-    G[0::2, 1::2] = np.minimum(P[:-1, 1:-1], P[1:, 1:-1])  # horizontal edges
-    G[1::2, 0::2] = np.minimum(P[1:-1, :-1], P[1:-1, 1:])  # vertical edges
-    G[0::2, 0::2] = np.minimum(np.minimum(P[:-1, :-1], P[1:, :-1]), np.minimum(P[:-1, 1:], P[1:, 1:]))
+    G[0::2, 1::2] = pick([P[:-1, 1:-1], P[1:, 1:-1]], [J[:-1, 1:-1], J[1:, 1:-1]])  # horizontal edges
+    G[1::2, 0::2] = pick([P[1:-1, :-1], P[1:-1, 1:]], [J[1:-1, :-1], J[1:-1, 1:]])  # vertical edges
+    G[0::2, 0::2] = pick([P[:-1, :-1], P[1:, :-1], P[:-1, 1:], P[1:, 1:]],
+                         [J[:-1, :-1], J[1:, :-1], J[:-1, 1:], J[1:, 1:]])  # corners
     u, v = np.meshgrid(np.arange(2 * w + 1) * 0.5 - 0.5, np.arange(2 * h + 1) * 0.5 - 0.5)
     return G, u, v
 
@@ -120,14 +133,16 @@ def _shadow_samples(view: DepthView, is_robot, floor: float, voxel: float,
     src[src] = P[src, 2] > floor + 0.005
     if np.any(src) and is_robot is not None:
         src[src] = ~is_robot(P[src])
-    start, u, v = _half_pixel_starts(np.where(src, d, np.inf).reshape(view.depth.shape))
+    f = float(max(view.K[0, 0], view.K[1, 1]))
+    S = np.where(src, d, np.inf).reshape(view.depth.shape)
+    jump = JUMP_PX * np.where(src, d, 0.0).reshape(view.depth.shape) / f
+    start, u, v = _half_pixel_starts(S, jump)
     live = np.isfinite(start)
     start, rays = start[live], view.rays_at(u[live], v[live])
     o = view.T_world_camera[:3, 3]
     norm = np.linalg.norm(rays, axis=1)
     depth = np.full(len(start), max_shadow)
     if shadow_px is not None:
-        f = float(max(view.K[0, 0], view.K[1, 1]))
         depth = np.minimum(depth, shadow_px * start * norm / f + voxel)
     end = start + depth / norm
     down = rays[:, 2] < 0

@@ -76,6 +76,11 @@ def rows() -> list[tuple[str, str, str, str]]:
                 "cuRobo 31 ms (GPU), VAMP 35 us, MoveIt RRT-Connect 100-200 ms", "planning"))
     out.append(("planned paths truly collision-free", pct(get(pl, "results.point_cloud.collision_free_fraction")),
                 "must be 100%", "planning"))
+    pen = get(pl, "results.point_cloud.worst_penetration_m")
+    out.append(("point-cloud plans through a true box / deepest (seeds x problems)",
+                "not run" if pen is None else
+                f"{get(pl, 'results.point_cloud.colliding_plans')} / {1000 * pen:.1f} mm "
+                f"({len(get(pl, 'seeds', []))} x {get(pl, 'problems_per_seed')})", "must be 0", "planning"))
     hi = "overall.hi"
     out.append(("perception ADD-S < 1 cm (640x480, depth noise)", pct(get(pe, f"{hi}.adds_lt_1cm_rate")), "goal >= 95%",
                 "perception"))

@@ -3,12 +3,15 @@
 Each problem (random boxes, a random collision-free start, a random reachable collision-free goal
 pose over the table) is planned twice: with the scene boxes, and with the point cloud that the
 sim's front and wrist cameras (skillgen_ros.core.sim.camera, pybullet TinyRenderer) see of the
-same scene, self-filtered and heightmap-filled (CollisionModel.set_point_cloud(fill_below=True);
-its cost is reported separately as cloud_prep; planning time is planner.plan). Every returned
-trajectory is checked densely (every 5 mm of robot motion) against the ground-truth boxes and the
-table with pybullet's mesh distance queries -- independent of the sphere model.
+same scene, self-filtered, with the space hidden behind what the cameras saw (their depth views;
+core/planning/occlusion.py) and heightmap-filled (CollisionModel.set_point_cloud(fill_below=True,
+views=...); its cost is reported separately as cloud_prep; planning time is planner.plan). Every
+returned trajectory is checked densely (every 5 mm of robot motion) against the ground-truth boxes
+and the table with pybullet's mesh distance queries -- independent of the sphere model. The
+planner's table is the bench's own (top at z = 0). Each seed's colliding plans and deepest
+penetration are recorded (results.<mode>.per_seed).
 
-    python bench/planning/run.py [--quick] [--problems N] [--seed S]
+    python bench/planning/run.py [--quick] [--problems N] [--seeds 0-4 | --seed S] [--no-occlusion]
 """
 from __future__ import annotations
 

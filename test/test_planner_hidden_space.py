@@ -5,6 +5,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 import pybullet as pb
 import yaml
 from pybullet_utils.bullet_client import BulletClient
@@ -99,3 +100,10 @@ def test_the_node_occupies_what_the_camera_could_not_see_behind_a_box(ros_domain
         finally:
             stop.set()
             t.join()
+
+
+@pytest.mark.parametrize("param", ["cloud_shadow_px:=-1.0", "cloud_shadow_px:=.nan"])
+def test_a_bad_shadow_depth_parameter_exits_with_a_reason(start_node, param):
+    proc = start_node("planner", "--ros-args", "-p", param)
+    assert proc.proc.wait(timeout=60) == 2
+    assert "INVALID_PARAMETER" in proc.stop()

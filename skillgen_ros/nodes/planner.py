@@ -53,7 +53,7 @@ from skillgen_interfaces.msg import PhaseTiming
 from skillgen_interfaces.srv import PlanToPose
 from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
 from skillgen_ros.core.geometry import validate_pose
-from skillgen_ros.core.planning.collision import AttachedObject, Box, CollisionModel
+from skillgen_ros.core.planning.collision import SHADOW_PX, AttachedObject, Box, CollisionModel
 from skillgen_ros.core.planning.ik import IKSolver
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.planning.occlusion import DepthView
@@ -80,7 +80,7 @@ PARAMS = {  # name: (default, description)
     "cloud_fill_below": (True, "treat the space under observed points as occupied (heightmap)"),
     "cloud_hidden_space": (True, "space hidden behind what the cameras saw is occupied (camera clouds, "
                                  "with camera/<name>/pose and camera_info; docs/planning.md)"),
-    "cloud_shadow_px": (4.0, "depth of that hidden layer in pixel footprints (0: all of it, down to the table)"),
+    "cloud_shadow_px": (SHADOW_PX, "depth of that hidden layer in pixel footprints (0: all of it, down to the table)"),
     "velocity_scale": (0.5, "fraction of the Panda's V/A/J limits used for timing"),
     "dt": (0.02, "trajectory sample period (s)"),
     "execute_timeout": (60.0, "longest wait for execute_trajectory (s)"),

@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from skillgen_ros.core.errors import InvalidInputError
 from skillgen_ros.core.geometry import Pose
-from skillgen_ros.core.planning.collision import Box, CollisionModel
+from skillgen_ros.core.planning.collision import CollisionModel
 from skillgen_ros.core.planning.ik import IKSolver
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.planning.occlusion import DepthView, hidden_space

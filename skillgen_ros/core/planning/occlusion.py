@@ -6,12 +6,12 @@ them (bench/planning: up to ~1 cm deep). MoveIt's occupancy map keeps such cells
 like a planner that treats unknown as occupied, they are obstacles.
 
 For each depth view (a depth image with the intrinsics K and the pose it was taken from):
-1. shadow sources: pixels whose point is an obstacle (above the table, not the robot itself);
-   their depth is min-filtered over `edge_px` pixels, so a ray that just missed an edge starts
-   its shadow where the edge is (the edge lies between two rays);
-2. each source pixel's rays (2x2 per pixel, so that neighbouring rays are closer than a cell)
-   are marched from that depth `shadow_px` pixel footprints deeper, or to the table: the cells
-   they pass are candidates;
+1. shadow sources: pixels whose point is an obstacle (above the table, not the robot itself).
+   Rays every half pixel (centres, edge midpoints, corners): inside one smooth surface a ray
+   starts on it; at a silhouette or a depth jump it starts at the nearest neighbour's depth, so
+   the shadow reaches half a pixel past an edge (the edge lies between two rays);
+2. each ray is marched `shadow_px` pixel footprints (at its range) deeper, or to the table: the
+   cells it passes are candidates;
 3. a candidate is carved (free) if some camera certifies the whole cell in front of what it saw:
    projected into that view, every pixel within the cell's footprint (+`edge_px`) saw a surface
    deeper than the cell by its half-diagonal plus `slope_px` pixel footprints at that range

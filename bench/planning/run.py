@@ -3,12 +3,15 @@
 Each problem (random boxes, a random collision-free start, a random reachable collision-free goal
 pose over the table) is planned twice: with the scene boxes, and with the point cloud that the
 sim's front and wrist cameras (skillgen_ros.core.sim.camera, pybullet TinyRenderer) see of the
-same scene, self-filtered and heightmap-filled (CollisionModel.set_point_cloud(fill_below=True);
-its cost is reported separately as cloud_prep; planning time is planner.plan). Every returned
-trajectory is checked densely (every 5 mm of robot motion) against the ground-truth boxes and the
-table with pybullet's mesh distance queries -- independent of the sphere model.
+same scene, self-filtered, with the space hidden behind what the cameras saw (their depth views;
+core/planning/occlusion.py) and heightmap-filled (CollisionModel.set_point_cloud(fill_below=True,
+views=...); its cost is reported separately as cloud_prep; planning time is planner.plan). Every
+returned trajectory is checked densely (every 5 mm of robot motion) against the ground-truth boxes
+and the table with pybullet's mesh distance queries -- independent of the sphere model. The
+planner's table is the bench's own (top at z = 0). Each seed's colliding plans and deepest
+penetration are recorded (results.<mode>.per_seed).
 
-    python bench/planning/run.py [--quick] [--problems N] [--seed S]
+    python bench/planning/run.py [--quick] [--problems N] [--seeds 0-4 | --seed S] [--no-occlusion]
 """
 from __future__ import annotations
 
@@ -37,6 +40,7 @@ from skillgen_ros.core.geometry import Pose  # noqa: E402
 from skillgen_ros.core.planning.collision import Box, CollisionModel  # noqa: E402
 from skillgen_ros.core.planning.ik import IKSolver  # noqa: E402
 from skillgen_ros.core.planning.kinematics import PandaKinematics  # noqa: E402
+from skillgen_ros.core.planning.occlusion import DepthView  # noqa: E402
 from skillgen_ros.core.planning.planner import Mode, MotionPlanner  # noqa: E402
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS, HAND_LINK, Q_HOME, panda_urdf_path  # noqa: E402
 from skillgen_ros.core.sim import camera as cam  # noqa: E402
@@ -86,6 +90,8 @@ class GroundTruth:
     """pybullet scene with the Panda (meshes), the boxes and a table slab, for rendering and
     for the independent collision check."""
 
+    TABLE_TOP_Z = 0.0  # the slab's top; the boxes stand on it
+
     def __init__(self):
         self.p = BulletClient(connection_mode=pb.DIRECT)
         self.robot = self.p.loadURDF(panda_urdf_path(), useFixedBase=True)
@@ -121,7 +127,9 @@ class GroundTruth:
         T_hand[:3, 3] = hand[4]
         poses = {"front": cam.front_camera_pose(), "wrist": T_hand @ cam.wrist_in_hand()}
         rng = np.random.default_rng(0)
-        return np.vstack([cam.render(self.p, c, poses[c.name], rng).valid_points() for c in cfgs])
+        frames = [cam.render(self.p, c, poses[c.name], rng) for c in cfgs]
+        views = [DepthView(f.depth, f.K, f.T_world_camera) for f in frames]
+        return np.vstack([f.valid_points() for f in frames]), views
 
     def penetration(self, Q):
         """Deepest robot penetration (m, >0 = collision) into the boxes or the table along Q,
@@ -138,7 +146,7 @@ class GroundTruth:
         return worst, where
 
 
-def run_mode(mode, problems, kin, ik, cm, gt, planner, cfgs, timeout):
+def run_mode(mode, problems, kin, ik, cm, gt, planner, cfgs, timeout, occlusion=True, tag=""):
     rows = []
     for i, (boxes, start, goal) in enumerate(problems):
         gt.set_boxes(boxes)
@@ -148,9 +156,10 @@ def run_mode(mode, problems, kin, ik, cm, gt, planner, cfgs, timeout):
             n_pts, prep = 0, 0.0
         else:
             cm.set_boxes([], as_obstacles=False)
-            pts = gt.cloud(start, cfgs)  # rendering is the sim's cost, not the planner's
+            pts, views = gt.cloud(start, cfgs)  # rendering is the sim's cost, not the planner's
             t = time.perf_counter()
-            n_pts = cm.set_point_cloud(pts, self_filter_q=start, fill_below=True)
+            n_pts = cm.set_point_cloud(pts, self_filter_q=start, fill_below=True,
+                                       views=views if occlusion else ())
             prep = time.perf_counter() - t
         t = time.perf_counter()
         res = planner.plan(start, goal, Mode.TRANSIT, timeout=timeout)
@@ -172,61 +181,101 @@ def run_mode(mode, problems, kin, ik, cm, gt, planner, cfgs, timeout):
         else:
             row["message"] = res.message
         rows.append(row)
-        print(f"[{mode}] {i:3d} {row['status']:18s} {wall * 1e3:7.1f} ms "
+        print(f"[{tag}{mode}] {i:3d} {row['status']:18s} {wall * 1e3:7.1f} ms "
               f"{'' if not res.ok else ('free' if row['collision_free'] else 'HIT %.4f' % pen)}", flush=True)
+    return rows
+
+
+def summarize(rows) -> dict:
+    """Success, timing (successful plans), path quality and ground-truth collisions over `rows`."""
     ok = [r for r in rows if r["status"] == "SUCCESS"]
     t_ok = np.array([r["time"] for r in ok]) if ok else np.array([np.nan])
+    pen = [r["penetration_m"] for r in ok]
     return {
         "problems": len(rows),
         "success_rate": len(ok) / len(rows),
-        "status_counts": {s: sum(r["status"] == s for r in rows) for s in {r["status"] for r in rows}},
+        "status_counts": {s: sum(r["status"] == s for r in rows) for s in sorted({r["status"] for r in rows})},
         "time_median_s": float(np.median(t_ok)), "time_p95_s": float(np.percentile(t_ok, 95)),
         "time_all_median_s": float(np.median([r["time"] for r in rows])),
         "joint_path_length_median_rad": float(np.median([r["joint_path_length"] for r in ok])) if ok else None,
         "ee_path_length_median_m": float(np.median([r["ee_waypoint_path_length"] for r in ok])) if ok else None,
         "trajectory_duration_median_s": float(np.median([r["duration"] for r in ok])) if ok else None,
         "collision_free_fraction": float(np.mean([r["collision_free"] for r in ok])) if ok else None,
+        "colliding_plans": int(sum(not r["collision_free"] for r in ok)),
+        # deepest ground-truth penetration of a returned plan (m); 0.0 = no contact at all
+        "worst_penetration_m": float(max([0.0] + [p for p in pen if p > 0])),
         "cloud_points_median": float(np.median([r["points"] for r in rows])),
         "cloud_prep_median_s": float(np.median([r["cloud_prep_time"] for r in rows])),
-        "rows": rows,
+        "cloud_prep_p95_s": float(np.percentile([r["cloud_prep_time"] for r in rows], 95)),
     }
+
+
+def parse_seeds(text: str) -> list[int]:
+    """"0,3,7" or "0-4" (inclusive) or a mix."""
+    out = []
+    for part in text.split(","):
+        a, _, b = part.partition("-")
+        out += list(range(int(a), int(b) + 1)) if b else [int(a)]
+    return out
+
+
+def run_seed(seed, args, kin, cm, gt, cfgs) -> dict:
+    """One seed's suite: problems from rng(seed), IK rng `seed`, planner seed `seed + 1`."""
+    ik = IKSolver(kin, rng=seed)
+    planner = MotionPlanner(kin, ik, cm, seed=seed + 1)
+    rng = np.random.default_rng(seed)
+    n_boxes = (args.min_boxes, args.max_boxes)
+    problems = [make_problem(rng, kin, ik, cm, n_boxes) for _ in range(args.problems)]
+    return {m: run_mode(m, problems, kin, ik, cm, gt, planner, cfgs, args.timeout,
+                        occlusion=not args.no_occlusion, tag=f"seed {seed} ")
+            for m in args.modes.split(",")}
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="20 problems")
-    ap.add_argument("--problems", type=int, default=100)
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--problems", type=int, default=100, help="problems per seed")
+    ap.add_argument("--seed", type=int, default=0, help="one seed (ignored with --seeds)")
+    ap.add_argument("--seeds", default=None, help='several seeds: "0-4" or "0,5,9"')
     ap.add_argument("--timeout", type=float, default=5.0)
     ap.add_argument("--camera-px", type=int, default=128, help="camera width = height (sim default 128)")
     ap.add_argument("--modes", default="scene,point_cloud")
     ap.add_argument("--min-boxes", type=int, default=4)
     ap.add_argument("--max-boxes", type=int, default=8)
+    ap.add_argument("--no-occlusion", action="store_true",
+                    help="point cloud without the hidden-space fill (the model before issue 19)")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "planning.json"))
     args = ap.parse_args()
-    n = 20 if args.quick else args.problems
+    if args.quick:
+        args.problems = 20
+    seeds = parse_seeds(args.seeds) if args.seeds else [args.seed]
     kin = PandaKinematics()
-    cm = CollisionModel(kin)
-    ik = IKSolver(kin, rng=args.seed)
-    planner = MotionPlanner(kin, ik, cm, seed=args.seed + 1)
-    rng = np.random.default_rng(args.seed)
-    problems = [make_problem(rng, kin, ik, cm, (args.min_boxes, args.max_boxes)) for _ in range(n)]
+    cm = CollisionModel(kin, table_z=GroundTruth.TABLE_TOP_Z)  # the bench's own table (below)
     gt = GroundTruth()
     cfgs = (cam.CameraConfig("front", args.camera_px, args.camera_px),
             cam.CameraConfig("wrist", args.camera_px, args.camera_px))
-    results = {m: run_mode(m, problems, kin, ik, cm, gt, planner, cfgs, args.timeout)
-               for m in args.modes.split(",")}
+    per_seed = {s: run_seed(s, args, kin, cm, gt, cfgs) for s in seeds}
+    results = {}
+    for m in args.modes.split(","):
+        rows = [dict(r, seed=s) for s in seeds for r in per_seed[s][m]]
+        results[m] = summarize(rows)
+        results[m]["per_seed"] = {str(s): {k: v for k, v in summarize(per_seed[s][m]).items()
+                                           if k in ("success_rate", "status_counts", "colliding_plans",
+                                                    "worst_penetration_m", "time_median_s", "time_p95_s")}
+                                  for s in seeds}
+        results[m]["rows"] = rows
     out = {
         "benchmark": "planning", "command": "python " + " ".join(sys.argv),
-        "problems": n, "boxes_per_problem": [args.min_boxes, args.max_boxes], "seed": args.seed, "timeout_s": args.timeout, "camera_px": args.camera_px,
+        "problems": args.problems * len(seeds), "problems_per_seed": args.problems, "seeds": seeds,
+        "occlusion": not args.no_occlusion,
+        "boxes_per_problem": [args.min_boxes, args.max_boxes], "timeout_s": args.timeout, "camera_px": args.camera_px,
         "machine": machine_info(),
         "anchors": {"moveit_ompl_rrtconnect_typical_s": [0.1, 0.2], "curobo_gpu_median_s": 0.031,
                     "vamp_simd_median_s": 35e-6},
         "results": results,
     }
     for m, r in results.items():
-        r_short = {k: v for k, v in r.items() if k != "rows"}
-        print(m, json.dumps(r_short, indent=1))
+        print(m, json.dumps({k: v for k, v in r.items() if k != "rows"}, indent=1))
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=1))
 

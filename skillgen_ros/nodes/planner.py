@@ -10,7 +10,10 @@ Interfaces (relative names):
   (reliable, transient local) for SOURCE_POINT_CLOUD; the perception cloud wins when present.
   They are read on demand, the newest at request time (nodes/latest.py), and decoded only then;
   the readers are made on the first point-cloud request (which waits up to 1 s for the latched
-  obstacle cloud).
+  obstacle cloud). With `cloud_hidden_space`, each organized camera cloud also becomes a depth
+  view through `camera/<name>/pose` and `camera/<name>/camera_info` of the same stamp (read
+  the same way), and the space hidden behind what it saw is occupied, as in-process
+  (CollisionModel.set_point_cloud(views=...); docs/planning.md).
 - publishes `planner/path_markers` (visualization_msgs/MarkerArray, latched) for Foxglove
 - action client `execute_trajectory` (skillgen_interfaces/action/ExecuteTrajectory)
 
@@ -41,8 +44,8 @@ from skillgen_ros.action_client import SafeActionClient as ActionClient
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy, qos_profile_sensor_data
-from geometry_msgs.msg import Point
-from sensor_msgs.msg import JointState, PointCloud2
+from geometry_msgs.msg import Point, PoseStamped
+from sensor_msgs.msg import CameraInfo, JointState, PointCloud2
 from visualization_msgs.msg import Marker, MarkerArray
 
 from skillgen_interfaces.action import ExecuteTrajectory
@@ -50,9 +53,10 @@ from skillgen_interfaces.msg import PhaseTiming
 from skillgen_interfaces.srv import PlanToPose
 from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
 from skillgen_ros.core.geometry import validate_pose
-from skillgen_ros.core.planning.collision import AttachedObject, Box, CollisionModel
+from skillgen_ros.core.planning.collision import SHADOW_PX, AttachedObject, Box, CollisionModel
 from skillgen_ros.core.planning.ik import IKSolver
 from skillgen_ros.core.planning.kinematics import PandaKinematics
+from skillgen_ros.core.planning.occlusion import DepthView
 from skillgen_ros.core.planning.planner import Mode, MotionPlanner, PlanStatus
 from skillgen_ros.core import validation as V
 from skillgen_ros.core.robot import ARM_JOINTS, Q_LOWER, Q_UPPER
@@ -61,6 +65,7 @@ from skillgen_ros.nodes.latest import LatestMessage, wait_future
 from skillgen_ros.nodes.runtime import run_node
 
 WORLD_FRAMES = ("", "world", "panda_link0")
+CAMERA_CLOUDS = ("camera/front/points", "camera/wrist/points")
 LATCHED = QoSProfile(depth=1, reliability=QoSReliabilityPolicy.RELIABLE,
                      durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
 PARAMS = {  # name: (default, description)
@@ -73,6 +78,9 @@ PARAMS = {  # name: (default, description)
     "box_margin": (0.005, "safety margin against scene boxes (m)"),
     "cloud_margin": (0.01, "safety margin against point-cloud points (m)"),
     "cloud_fill_below": (True, "treat the space under observed points as occupied (heightmap)"),
+    "cloud_hidden_space": (True, "space hidden behind what the cameras saw is occupied (camera clouds, "
+                                 "with camera/<name>/pose and camera_info; docs/planning.md)"),
+    "cloud_shadow_px": (SHADOW_PX, "depth of that hidden layer in pixel footprints (0: all of it, down to the table)"),
     "velocity_scale": (0.5, "fraction of the Panda's V/A/J limits used for timing"),
     "dt": (0.02, "trajectory sample period (s)"),
     "execute_timeout": (60.0, "longest wait for execute_trajectory (s)"),
@@ -119,6 +127,7 @@ class PlannerNode(Node):
                 V.finite(k, p[k], 0.0, MAX_TIMEOUT, lo_open=True)
             for k in ("retreat_distance", "approach_distance", "box_margin", "cloud_margin"):
                 V.finite(k, p[k], 0.0, 1.0)
+            V.finite("cloud_shadow_px", p["cloud_shadow_px"], 0.0, 1000.0)
         except InvalidInputError as e:
             raise ParameterError(str(e.args[0])) from None
         self.p = p
@@ -139,6 +148,7 @@ class PlannerNode(Node):
         # SOURCE_SCENE (datagen's) reads nothing, and a reader the driver must deliver every period
         # to costs the graph's hot loop even if it is never read.
         self._clouds: dict[str, LatestMessage] | None = None
+        self._camera_meta: dict[str, LatestMessage] = {}
         self._joints: LatestMessage | None = None
 
         state_group = ReentrantCallbackGroup()
@@ -162,23 +172,48 @@ class PlannerNode(Node):
             return None
         return np.array([msg.position[idx[j]] for j in ARM_JOINTS])
 
-    def _cloud(self) -> np.ndarray:
+    def _cloud(self) -> tuple[np.ndarray, list[DepthView]]:
         """The perception obstacle cloud when there is one, else the camera clouds fused; clouds in
-        frames other than the world's are skipped, and only clouds in wrong frames is an error."""
+        frames other than the world's are skipped, and only clouds in wrong frames is an error.
+        With camera clouds, also their depth views (for the hidden space)."""
         wait = 0.0
         if self._clouds is None:  # first use: give the latched obstacle cloud time to arrive
             self._clouds = {t: LatestMessage(self, PointCloud2, t, qos_profile_sensor_data)
-                            for t in ("camera/front/points", "camera/wrist/points")}
+                            for t in CAMERA_CLOUDS}
             self._clouds["perception/obstacles"] = LatestMessage(self, PointCloud2, "perception/obstacles", LATCHED)
+            for t in CAMERA_CLOUDS:  # each cloud's camera pose and intrinsics (for its depth view)
+                base = t.rsplit("/", 1)[0]
+                for kind, mtype in (("pose", PoseStamped), ("camera_info", CameraInfo)):
+                    self._camera_meta[f"{base}/{kind}"] = LatestMessage(self, mtype, f"{base}/{kind}",
+                                                                        qos_profile_sensor_data)
             wait = 1.0
-        msgs = {t: sub.latest(wait if t == "perception/obstacles" else 0.0) for t, sub in self._clouds.items()}
+        msgs = {"perception/obstacles": self._clouds["perception/obstacles"].latest(wait)}  # first: the
+        msgs.update({t: self._clouds[t].latest(0.0) for t in CAMERA_CLOUDS})  # cameras' frames came meanwhile
         msgs = {t: m for t, m in msgs.items() if m is not None}
         good = {t: m for t, m in msgs.items() if m.header.frame_id in WORLD_FRAMES}
         if len(good) < len(msgs) and not good:
             raise InvalidInputError("point clouds in unsupported frames: "
                                     f"{ {t: m.header.frame_id for t, m in msgs.items()} }")
-        use = [good["perception/obstacles"]] if "perception/obstacles" in good else list(good.values())
-        return np.vstack([convert.cloud_to_points(m) for m in use]) if use else np.empty((0, 3))
+        if "perception/obstacles" in good:  # task objects removed: no views (they would shadow them)
+            return convert.cloud_to_points(good["perception/obstacles"]), []
+        clouds = {t: convert.cloud_to_points(m) for t, m in good.items()}
+        views = [v for t, m in good.items() if self.p["cloud_hidden_space"]
+                 for v in [self._view(t, m, clouds[t])] if v is not None]
+        return (np.vstack(list(clouds.values())) if clouds else np.empty((0, 3))), views
+
+    def _view(self, topic: str, msg: PointCloud2, points: np.ndarray) -> DepthView | None:
+        """The depth view of an organized camera cloud: its camera's pose and K with the same stamp
+        (camera/<name>/pose, camera/<name>/camera_info); None, with a warning, if there are none."""
+        base = topic.rsplit("/", 1)[0]
+        same = lambda m: m is not None and m.header.stamp == msg.header.stamp  # noqa: E731
+        pose = self._camera_meta[f"{base}/pose"].wait_for(same, 0.2)
+        info = self._camera_meta[f"{base}/camera_info"].wait_for(same, 0.2)
+        if msg.height < 2 or pose is None or info is None or (info.height, info.width) != (msg.height, msg.width):
+            self.get_logger().warning(f"{topic}: no organized cloud with its camera pose and camera_info "
+                                      "of the same stamp; its hidden space is not marked")
+            return None
+        T = convert.pose_from_msg(pose.pose).matrix()
+        return DepthView.from_organized(points.reshape(msg.height, msg.width, 3), np.reshape(info.k, (3, 3)), T)
 
     # -- service -----------------------------------------------------------------------------
     def _on_plan(self, req: PlanToPose.Request, resp: PlanToPose.Response):
@@ -253,8 +288,10 @@ class PlannerNode(Node):
             self.cm.set_point_cloud(np.empty((0, 3)))
         else:
             self.cm.set_boxes(list(obstacles.values()), as_obstacles=False)
-            self.cm.set_point_cloud(self._cloud(), self_filter_q=q0, attached=attached,
-                                    fill_below=bool(self.p["cloud_fill_below"]))
+            points, views = self._cloud()
+            self.cm.set_point_cloud(points, self_filter_q=q0, attached=attached,
+                                    fill_below=bool(self.p["cloud_fill_below"]), views=views,
+                                    shadow_px=float(self.p["cloud_shadow_px"]) or None)
         manipulated = req.manipulated_object or None
         if manipulated is not None and manipulated not in boxes:
             raise InvalidInputError(f"manipulated object {manipulated!r} not in the scene")

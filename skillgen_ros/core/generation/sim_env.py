@@ -18,6 +18,7 @@ import numpy as np
 from ..errors import InvalidInputError, SkillGenError
 from ..geometry import Pose
 from ..planning.collision import AttachedObject, Box, CollisionModel
+from ..planning.occlusion import DepthView
 from ..planning.ik import IKSolver
 from ..planning.kinematics import PandaKinematics
 from ..planning.planner import Mode, MotionPlanner, PlanStatus
@@ -191,7 +192,7 @@ class SimGenerationEnv:
             self.cm.set_boxes(boxes, as_obstacles=False)
             att = self._attachment(attached, poses)
             self.cm.set_point_cloud(frame.valid_points(), self_filter_q=self.world.joint_positions(), attached=att,
-                                    fill_below=True)
+                                    fill_below=True, views=[DepthView(frame.depth, frame.K, frame.T_world_camera)])
             return att
         boxes = []
         for o in self.scene.objects:

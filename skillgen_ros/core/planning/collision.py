@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 import yaml
@@ -24,10 +25,12 @@ from ..geometry import invert
 from ..robot import HAND_LINK, TABLE_Z
 from . import kernels
 from .kinematics import LINKS, PandaKinematics
+from .occlusion import DepthView, hidden_space
 
 SPHERES_FILE = Path(__file__).with_name("panda_spheres.yaml")
 HAND = LINKS.index(HAND_LINK)
 ATTACHED = len(LINKS)  # group id of attached-object spheres
+SHADOW_PX = 4.0  # hidden space behind a surface, in pixel footprints (docs/planning.md: measured)
 
 
 @dataclass(frozen=True, eq=False)  # identity equality: fields are arrays
@@ -106,15 +109,16 @@ class _Spheres:
 
 
 def heightmap_fill(P: np.ndarray, floor: float, voxel: float) -> np.ndarray:
-    """Voxel columns from `floor` up to the highest point of each (x, y) cell."""
+    """Voxel columns from `floor` (included: an object's bottom edge stands on it) up to the
+    highest point of each (x, y) cell."""
     ij = np.floor(P[:, :2] / voxel).astype(np.int64)
     cells, inv = np.unique(ij, axis=0, return_inverse=True)
     top = np.full(len(cells), -np.inf)
     np.maximum.at(top, inv.reshape(-1), P[:, 2])
-    n = np.maximum(1, np.ceil((top - floor) / voxel).astype(np.int64))
+    n = np.maximum(1, np.ceil((top - floor) / voxel).astype(np.int64)) + 1
     rep = np.repeat(np.arange(len(cells)), n)
     k = np.arange(len(rep)) - np.repeat(np.cumsum(n) - n, n)
-    z = np.minimum(floor + (k + 1) * voxel, top[rep])
+    z = np.minimum(floor + k * voxel, top[rep])  # from the table itself up to the top
     xy = (cells[rep] + 0.5) * voxel
     return np.column_stack([xy, z])
 
@@ -172,7 +176,8 @@ class CollisionModel:
 
     def set_point_cloud(self, points, self_filter_q=None, attached: AttachedObject | None = None,
                         filter_pad: float = 0.02, fill_below: bool = False,
-                        voxel: float = 0.01) -> int:
+                        voxel: float = 0.01, views: Sequence[DepthView] = (),
+                        shadow_px: float | None = SHADOW_PX) -> int:
         """Use `points` (N,3, world) as obstacles; returns how many are kept.
 
         Dropped: non-finite points, the table top (z <= table_z + 5 mm; the table is the
@@ -181,16 +186,35 @@ class CollisionModel:
         fill_below: treat the space under every observed point, down to the table, as occupied
         (the 2.5-D heightmap assumption of tabletop scenes: a camera sees the tops and fronts of
         objects, not their backs). Points are then voxelized at `voxel` metres.
+        views: the depth images the points came from (occlusion.DepthView); the space hidden
+        behind what they saw, unless another view saw it free, is occupied too (cells of `voxel`),
+        `shadow_px` pixel footprints deep (None: all of it, down to the table). With fill_below,
+        the hidden cells are filled below as well: the unseen strip at a box's far edge, between
+        its last seen top pixel and the true edge, then reaches the table.
         """
         P = np.asarray(points, float).reshape(-1, 3)
         P = P[np.all(np.isfinite(P), axis=1)]
-        if self.table_z is not None:
-            P = P[P[:, 2] > self.table_z + 0.005]
-        if self_filter_q is not None and len(P):
-            C, R, _ = self._spheres_world(np.asarray(self_filter_q, float).reshape(1, 7), attached)
-            near = cKDTree(P).query_ball_point(C[0], R + filter_pad)
-            drop = np.unique(np.concatenate([np.asarray(i, int) for i in near] + [np.empty(0, int)]))
-            P = np.delete(P, drop, axis=0)
+        floor = self.table_z if self.table_z is not None else -np.inf
+        P = P[P[:, 2] > floor + 0.005]
+        on_robot = None
+        if self_filter_q is not None:
+            C, R = self._spheres_world(np.asarray(self_filter_q, float).reshape(1, 7), attached)[:2]
+
+            def on_robot(X):  # noqa: E306 -- inside some padded robot sphere
+                hit = np.zeros(len(X), bool)
+                if len(X):
+                    for i in cKDTree(X).query_ball_point(C[0], R + filter_pad):
+                        hit[i] = True
+                return hit
+            if len(P):
+                P = P[~on_robot(P)]
+        if len(views) and self.table_z is not None:
+            if self.cloud_margin < 0.5 * np.sqrt(3.0) * voxel:
+                raise InvalidInputError(f"cloud margin {self.cloud_margin} m does not cover a {voxel} m cell")
+            H = hidden_space(views, self.table_z, on_robot, voxel, shadow_px=shadow_px)
+            if on_robot is not None and len(H):
+                H = H[~on_robot(H)]  # where the robot is, is its own space
+            P = np.vstack([P, H])
         if fill_below and len(P) and self.table_z is not None:
             P = heightmap_fill(P, self.table_z, voxel)
         self.cloud = P

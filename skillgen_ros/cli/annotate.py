@@ -27,31 +27,30 @@ from skillgen_ros.core.skills.auto_annotation import AnnotationRules, auto_annot
 from skillgen_ros.core.skills.bag_demos import (annotation_path, expand_bag_paths, open_bag, read_annotation,
                                                 read_demo_arrays, read_scene)
 from skillgen_ros.core.tasks import get_task
+from skillgen_ros.core.tasks.skill_points import skill_point_offset
 
 
-def _kp(task: str, oid: str, name: str) -> list[float]:
-    return [float(v) for v in get_task(task).object(oid).keypoint(name)]
+def _kp(task: str, index: int) -> list[float]:
+    """Skill `index`'s working point in its object's frame (core/tasks/skill_points.py)."""
+    return [float(v) for v in skill_point_offset(get_task(task), index)]
 
 
 def _task_rules(task: str) -> dict:
     """Per-task proposal rules, matched to how demos approach each skill object (docs/source_demos.md)."""
-    nut = lambda i, n: {i: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, n, "handle")}}  # noqa
+    nut = lambda i: {i: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, i)}}  # noqa
     # a placement ends 30 steps (1.5 s) after the open: the fingers have opened and the hand has backed off
     # most of its 10 cm, so the wrist is clear of robosuite's 13 cm peg when the next motion is planned
-    peg = lambda i, p: {i: {"start_distance": 0.12, "post_steps": 30, "offset": _kp(task, p, "top")}}  # noqa
+    peg = lambda i: {i: {"start_distance": 0.12, "post_steps": 30, "offset": _kp(task, i)}}  # noqa
     if task == "Square":
-        return {"skills": {**nut(0, "square_nut"), **peg(1, "square_peg")}}
+        return {"skills": {**nut(0), **peg(1)}}
     if task == "NutAssembly":
-        return {"skills": {**nut(0, "square_nut"), **peg(1, "square_peg"),
-                           **nut(2, "round_nut"), **peg(3, "round_peg")}}
+        return {"skills": {**nut(0), **peg(1), **nut(2), **peg(3)}}
     if task == "PickPlace":
-        return {"skills": {0: {"start_distance": 0.06, "post_steps": 10, "offset": _kp(task, "milk", "top")},
-                           1: {"start_distance": 0.21, "post_steps": 5,
-                               "offset": _kp(task, "bin", "floor_center")}}}
+        return {"skills": {0: {"start_distance": 0.06, "post_steps": 10, "offset": _kp(task, 0)},
+                           1: {"start_distance": 0.21, "post_steps": 5, "offset": _kp(task, 1)}}}
     if task == "Threading":
-        return {"skills": {0: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, "needle", "handle")},
-                           1: {"start_distance": 0.19, "end_event": "demo_end",
-                               "offset": _kp(task, "tripod", "ring_center")}}}
+        return {"skills": {0: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, 0)},
+                           1: {"start_distance": 0.19, "end_event": "demo_end", "offset": _kp(task, 1)}}}
     return {}
 
 

@@ -148,7 +148,8 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
     cfg = req.config()
     out = RunResult(req)
     t0 = time.perf_counter()
-    env_args = make_env_args(req.task, req.variant, req.method, req.seed, cfg, [o.id for o in task.objects])
+    env_args = make_env_args(req.task, req.variant, req.method, req.seed, cfg, [o.id for o in task.objects],
+                             [d.source for d in demos])
     clips = []
     with AttemptSink(req.output_dir, env_args, keep_timings=keep_timings) as sink:
         out.dataset_path, out.failed_path = sink.dataset_path, sink.failed_path

@@ -21,7 +21,7 @@ from ..skills.segment import SourceDemo
 from .attempt import METHODS, AttemptResult, GenerationConfig, GenerationEnv, run_attempt
 from .profile import DEFAULT_PROFILE, get_profile
 from .release import ReleaseConfig
-from .selection import make_strategy
+from .selection import ALIASES as SELECTION_ALIASES, make_strategy
 
 
 @dataclass(frozen=True)
@@ -57,7 +57,8 @@ class RunRequest:
         if prof.name == "paper" and n != 1:
             raise InvalidInputError(f"the paper profile tries one initiation pose per skill; initiation_candidates={n} "
                                     "needs --profile skillgen_ros", reason="INVALID_PARAMETER")
-        return GenerationConfig(variant=self.variant, action_noise=self.action_noise, selection=self.selection,
+        return GenerationConfig(variant=self.variant, action_noise=self.action_noise,
+                                selection=SELECTION_ALIASES.get(self.selection, self.selection),
                                 augment=self.augment,
                                 augmentation=AugmentationConfig(self.augment_translation, self.augment_rotation_deg),
                                 max_steps=self.max_steps, initiation_candidates=n,

@@ -140,19 +140,26 @@ def record(task: str, seed: int, out: Path, variant: str = "D0", keep_failed: bo
     stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%S")
     bag = out / task / f"teleop_{stamp}"
     bag.parent.mkdir(parents=True, exist_ok=True)
+    from skillgen_ros.cli.node_logs import NodeLogs
+
     env = rosenv.ros_environment(dict(__import__("os").environ))
+    logs = NodeLogs(out / task / "logs" / bag.name)  # the terminal is the teleop's: other nodes log to files
+
+    def start(name: str, args: list[str]) -> subprocess.Popen:
+        with logs.open(name) as f:
+            return subprocess.Popen([_exe(name), "--ros-args", *args], env=env, stdin=subprocess.DEVNULL,
+                                    stdout=f, stderr=subprocess.STDOUT)
     # lockstep: the sim advances one control period per osc_target, so the recorded command stream
     # is exactly the demo's control steps (and replays open-loop)
-    procs = [subprocess.Popen([_exe("sim_driver"), "--ros-args", "-p", f"initial_task:={task}",
-                               "-p", f"initial_variant:={variant}", "-p", f"initial_seed:={seed}",
-                               "-p", "timing_mode:=lockstep", "-p", "publish_points:=false"],
-                              env=env, stdin=subprocess.DEVNULL)]
+    procs = [start("sim_driver", ["-p", f"initial_task:={task}", "-p", f"initial_variant:={variant}",
+                                  "-p", f"initial_seed:={seed}", "-p", "timing_mode:=lockstep",
+                                  "-p", "publish_points:=false"])]
     try:
         topics = "[" + ",".join(f'"{t}"' for t in SOURCE_TOPICS) + "]"
-        procs.append(subprocess.Popen([_exe("recorder"), "--ros-args", "-p", f"output:={bag}",
-                                       "-p", f"topics:={topics}"], env=env, stdin=subprocess.DEVNULL))
-        print(f"recording {task}/{variant} seed {seed} into {bag}; teleop keys: docs/teleop.md (q quits); "
-              f"where to grasp: docs/teleop.md; cameras: docs/foxglove/skillgen.json", flush=True)
+        procs.append(start("recorder", ["-p", f"output:={bag}", "-p", f"topics:={topics}"]))
+        print(f"recording {task}/{variant} seed {seed} into {bag} (node logs in {logs.dir}); keys and where "
+              f"to grasp: docs/teleop.md (q quits and judges the demo); cameras: docs/foxglove/skillgen.json",
+              flush=True)
         teleop = subprocess.run([_exe("teleop"), "--ros-args", "-p", f"task:={task}"], env=env)  # this terminal
     except KeyboardInterrupt:
         teleop = None
@@ -164,6 +171,7 @@ def record(task: str, seed: int, out: Path, variant: str = "D0", keep_failed: bo
                     p.wait(15)
                 except subprocess.TimeoutExpired:
                     p.kill()
+        logs.close()
     if bag.is_dir():
         from skillgen_ros.core.skills.bag_demos import SIDECAR_SCENE
 

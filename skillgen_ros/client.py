@@ -35,9 +35,6 @@ class SkillGenClient:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.client = ActionClient(self.node, Generate, "generate")
-        # a readiness probe answered after its retry (answered.py) is expected, not a second server:
-        # rclpy's "Ignoring unexpected goal response" warning about it is noise on the user's terminal
-        self.node.get_logger().get_child("action_client").set_level(rclpy.logging.LoggingSeverity.ERROR)
         self._feedback: Generate.Feedback | None = None
         self._goal = None
         self._result_future = None

@@ -116,3 +116,18 @@ def test_launch_sends_node_output_to_files(ros_domain, tmp_path):
         if p.poll() is None:
             p.kill()
             p.wait(30)
+
+
+def test_a_goal_the_graph_rejects_is_one_line_and_nodes_log_to_the_run(ros_domain, tmp_path):
+    """With the preflight bypassed the datagen node itself rejects the goal: the terminal still shows
+    one line (no duplicate node ERROR, no rclpy noise) and each node's log is a file in the run."""
+    code = ("import sys\nfrom skillgen_ros.cli import generate, main\ngenerate.preflight = lambda a: None\n"
+            f"sys.exit(main.main(['generate', '--task', 'Nope', '--output', {str(tmp_path / 'run')!r}]))\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=REPO,
+                       env=node_env(ros_domain))
+    lines = [ln for ln in r.stderr.splitlines() if not ln.startswith("[launch] datagen: node logs in")]
+    assert r.returncode == 2 and lines == [lines[0]] and lines[0].startswith("UNKNOWN_TASK: "), r.stderr
+    assert "Ignoring unexpected goal response" not in r.stderr and "never retrieved" not in r.stderr
+    logs = tmp_path / "run" / "logs"
+    assert {"datagen.log", "planner.log", "perception.log", "recorder.log"} <= {p.name for p in logs.iterdir()}
+    assert "generate rejected: UNKNOWN_TASK" in (logs / "datagen.log").read_text()

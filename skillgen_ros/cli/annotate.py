@@ -5,7 +5,8 @@
 
 Default: propose segments from gripper events and EE proximity (rules per task: TASK_RULES,
 or a YAML file with `--rules`, either {default:.., skills:{i:..}} or keyed by task name), apply
-`--override`s (by step, or by time from the demo's first step with an `s` suffix, step / 20 Hz), validate, and write the sidecar
+`--override`s (by step, or by time from the demo's first step with an `s` suffix: step / 20 Hz),
+validate, and write the sidecar
 `annotations.yaml` in the bag directory (`skillgen bag info` shows it). `--from-existing`
 starts from the bag's stored annotation instead of a new proposal; `--check` only validates the
 stored annotation and reports whether auto-annotation reproduces it (exit 1 if not valid).

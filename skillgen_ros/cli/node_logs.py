@@ -60,7 +60,7 @@ class NodeLogs:
         self._thread.start()
 
     def path(self, label: str) -> Path:
-        return self.dir / f"{re.sub(r'[^A-Za-z0-9_.-]', '_', label)}.log"
+        return self.dir / f"{re.sub(r'[^A-Za-z0-9_.-]+', '_', label).strip('_')}.log"
 
     def open(self, label: str):
         """A file for a node's stdout and stderr (Popen(stdout=f, stderr=subprocess.STDOUT)); the caller closes it."""

@@ -98,7 +98,8 @@ def status_line(view: TeleopView, task=None) -> str:
         parts.append(f"gripper {view.gripper_width:.3f} m {state}")
     label, point = next_target(task, view.next_skill, view.objects)
     if label:
-        dist = "" if point is None or view.ee is None else             f" {float(np.linalg.norm(point - np.asarray(view.ee.position))):.3f} m"
+        dist = ("" if point is None or view.ee is None
+                else f" {float(np.linalg.norm(point - np.asarray(view.ee.position))):.3f} m")
         parts.append(f"next {label}{dist}")
     parts.append(f"key {key_name(view.last_key) if view.last_key else '-'}")
     return " | ".join(parts)

@@ -65,6 +65,13 @@ def rows() -> list[tuple[str, str, str, str]]:
     out.append(("success with estimated vs ground-truth poses, Square D1",
                 f"{pct(get(dg, 'perception_estimate.rate'))} vs {pct(get(dg, 'perception_ground_truth.rate'))}", "",
                 "datagen"))
+    ht = load("hsp_timing")
+    out.append(("HSP inference, pi + T per 20 Hz control step (1 core, LSTM 400, median / p95)",
+                f"{num(get(ht, 'inference.pi_plus_T_ms_median'))} / {num(get(ht, 'inference.pi_plus_T_ms_p95'))} ms",
+                "goal <= 5 ms", "hsp_timing"))
+    out.append(("HSP training step, pi (BC-RNN-GMM, batch 100, seq 10; 2 threads)",
+                f"{num(get(ht, 'train_step.2.policy_ms_median'), '{:.0f}')} ms",
+                "robomimic 200k steps = ~6 h per network here", "hsp_timing"))
     out.append(("IK solve rate (TRAC-IK protocol, 10k)", pct(get(ik, "ours.solve_rate")),
                 "TRAC-IK 99.70%, KDL 61.77%", "ik"))
     out.append(("IK mean / median time", f"{num(get(ik, 'ours.mean_ms'))} / {num(get(ik, 'ours.median_ms'))} ms",
@@ -208,6 +215,11 @@ def render() -> str:
     cells = cell_rows()
     if cells:
         lines += [""] + cells
+    from bench.hsp.table import hsp_rows
+
+    hsp = hsp_rows(load("hsp"))
+    if hsp:
+        lines += [""] + hsp
     lines += ["", END]
     return "\n".join(lines)
 

@@ -18,7 +18,7 @@ import time
 from skillgen_ros import rosenv  # noqa: F401
 
 import rclpy
-from rclpy.action import ActionClient
+from skillgen_ros.action_client import SafeActionClient as ActionClient
 from rclpy.executors import SingleThreadedExecutor
 
 from skillgen_interfaces.action import Generate

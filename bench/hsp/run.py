@@ -82,7 +82,7 @@ def rerun_command(cell: str, a) -> str:
     keep = [f"--cells {cell}", f"--demos {a.demos}", f"--rollouts {a.rollouts}", f"--seed {a.seed}",
             f"--budget-steps {a.budget_steps}", f"--chunk-steps {a.chunk_steps}", f"--device {a.device}",
             f"--hidden {a.hidden}", f"--mlp-hidden {' '.join(map(str, a.mlp_hidden))}", f"--hsp-data {a.hsp_data}",
-            f"--work {a.work}", f"--out {a.out}"]
+            f"--work {a.work}", f"--out {os.path.relpath(a.out, ROOT)}"]
     if a.budget_minutes:
         keep.append(f"--budget-minutes {a.budget_minutes}")
     return ".venv/bin/python bench/hsp/run.py " + " ".join(keep)

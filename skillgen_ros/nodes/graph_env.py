@@ -26,7 +26,7 @@ import threading
 import time
 
 import numpy as np
-from rclpy.action import ActionClient
+from skillgen_ros.action_client import SafeActionClient as ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy

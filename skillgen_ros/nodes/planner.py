@@ -37,7 +37,7 @@ import traceback
 
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.action import ActionClient
+from skillgen_ros.action_client import SafeActionClient as ActionClient
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy, qos_profile_sensor_data

@@ -3,6 +3,7 @@ a failed demo kept out of the recordings folder, and the `demos` options' help."
 from __future__ import annotations
 
 import io
+import os
 import shutil
 from pathlib import Path
 
@@ -117,3 +118,22 @@ def test_every_demos_option_has_help_and_record_writes_to_its_own_folder():
             if act.option_strings and act.dest != "help":
                 assert act.help, f"demos {name} {act.option_strings} has no help"
     assert subs["record"].get_default("out") == demos.RECORD_OUT != demos.MAKE_OUT == "bags"
+
+
+class _Tty(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_status_printer_on_a_terminal_rewrites_one_line_cut_to_its_width(monkeypatch):
+    import shutil as sh
+
+    monkeypatch.setattr(sh, "get_terminal_size", lambda fallback=None: os.terminal_size((60, 24)))
+    out = _Tty()
+    sp = _StatusPrinter("Square", 5.0, 20.0, out=out)
+    for _ in range(8):
+        sp.tick(np.array([0.4, 0.0, 0.3, 1.0, 0, 0, 0]))
+    sp.finish()
+    frames = out.getvalue().split("\r")[1:]
+    assert len(frames) == 2 and "\n" not in frames[0]
+    assert all(len(f.replace("\x1b[K", "").rstrip("\n")) <= 59 for f in frames)

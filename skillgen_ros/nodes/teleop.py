@@ -33,6 +33,7 @@ import glob
 import os
 import re
 import select
+import shutil
 import struct
 import sys
 import termios
@@ -168,8 +169,9 @@ class _StatusPrinter:
         view = TeleopView(None if ee is None else Pose(ee[:3], ee[3:]), self._width, self._grasping, self._command,
                           None if self.progress is None else self.progress.index, self.objects, self.last_key)
         if self.tty:
-            if self._n % self.every == 0:
-                self.out.write("\r" + status_line(view, self.task) + "\x1b[K")
+            if self._n % self.every == 0:  # cut to the terminal's width: a wrapped line cannot be rewritten
+                cols = shutil.get_terminal_size((120, 24)).columns
+                self.out.write("\r" + status_line(view, self.task)[:max(20, cols - 1)] + "\x1b[K")
                 self.out.flush()
             return
         key = (self.last_key, self._grasping, view.next_skill, ee is not None)

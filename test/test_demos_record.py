@@ -23,7 +23,7 @@ def test_record_shows_status_and_judges_the_demo_on_q(ros_domain, tmp_path):
     os.close(slave)
     try:
         # the teleop has the EE (its status line names it) and its terminal is in cbreak mode
-        assert wait_for(lambda: "EE x " in log.read_text() and not termios.tcgetattr(master)[3] & termios.ICANON,
+        assert wait_for(lambda: "| EE " in log.read_text() and not termios.tcgetattr(master)[3] & termios.ICANON,
                         120), log.read_text()[-3000:]
         assert "next square_nut handle" in log.read_text()
         os.write(master, b"r")

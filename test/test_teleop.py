@@ -132,7 +132,7 @@ def test_keys_move_the_ee_and_toggle_the_gripper(ros_domain, driver):
         out = proc.stdout.read()
         assert proc.returncode == 0, out
         # the status line (issue 24): pose, gripper, the next object of the task, the last key
-        assert "EE x " in out and "gripper 0.0" in out and "next square_nut handle" in out, out
+        assert "| EE " in out and "gripper 0.0" in out and "next square_nut handle" in out, out
         assert "key w (+x)" in out and "key f (-z)" in out and "key space (gripper)" in out, out
     finally:
         if proc.poll() is None:

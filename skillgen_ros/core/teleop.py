@@ -79,16 +79,15 @@ def next_target(task, skill: int | None, objects: dict | None) -> tuple[str, np.
 
 
 def status_line(view: TeleopView, task=None) -> str:
-    """'EE x +0.512 y -0.103 z +0.201 m rpy +180 +0 +90 deg | gripper 0.080 m open | next square_nut handle
-    0.124 m | key w (+x)': what the person needs without another window."""
+    """'next square_nut handle 0.124 m | gripper 0.080 m open | key w (+x) | EE +0.512 -0.103 +0.201 m
+    rpy +180 +0 +90': what the person needs without another window, the most pressing first (a narrow
+    terminal cuts the line's end)."""
     parts = []
-    if view.ee is None:
-        parts.append("EE: waiting for ee_pose")
-    else:
-        p = view.ee.position
-        rpy = Rotation.from_quat(view.ee.quaternion).as_euler("xyz", degrees=True)
-        parts.append(f"EE x {p[0]:+.3f} y {p[1]:+.3f} z {p[2]:+.3f} m rpy {rpy[0]:+4.0f} {rpy[1]:+4.0f} "
-                     f"{rpy[2]:+4.0f} deg")
+    label, point = next_target(task, view.next_skill, view.objects)
+    if label:
+        dist = ("" if point is None or view.ee is None
+                else f" {float(np.linalg.norm(point - np.asarray(view.ee.position))):.3f} m")
+        parts.append(f"next {label}{dist}")
     if view.gripper_width is None:
         parts.append("gripper ?")
     else:
@@ -96,12 +95,13 @@ def status_line(view: TeleopView, task=None) -> str:
             "closed" if view.gripper_width < 0.1 * GRIPPER_MAX_WIDTH else
             "closing" if (view.gripper_command or -1) > 0 else "open")
         parts.append(f"gripper {view.gripper_width:.3f} m {state}")
-    label, point = next_target(task, view.next_skill, view.objects)
-    if label:
-        dist = ("" if point is None or view.ee is None
-                else f" {float(np.linalg.norm(point - np.asarray(view.ee.position))):.3f} m")
-        parts.append(f"next {label}{dist}")
     parts.append(f"key {key_name(view.last_key) if view.last_key else '-'}")
+    if view.ee is None:
+        parts.append("EE: waiting for ee_pose")
+    else:
+        p = view.ee.position
+        rpy = Rotation.from_quat(view.ee.quaternion).as_euler("xyz", degrees=True)
+        parts.append(f"EE {p[0]:+.3f} {p[1]:+.3f} {p[2]:+.3f} m rpy {rpy[0]:+.0f} {rpy[1]:+.0f} {rpy[2]:+.0f}")
     return " | ".join(parts)
 
 

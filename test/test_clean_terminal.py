@@ -50,12 +50,17 @@ def _bad_annotation(tmp_path) -> Path:
     (["--source-demos", "EMPTY"], "NO_SOURCE_DEMOS"),
     (["--source-demos", "MISSING"], "BAG_NOT_FOUND"),
     (["--source-demos", "BAD_ANNOTATION"], "ANNOTATION_WRONG_TASK"),
+    (["--source-demos", "UNANNOTATED"], "ANNOTATION_NOT_FOUND"),  # a recording used before `skillgen annotate`
 ])
 def test_generate_checks_everything_before_any_node_starts(args, reason, tmp_path, no_graph, capsys):
     subs = {"EMPTY": str(tmp_path / "empty"), "MISSING": str(tmp_path / "nowhere")}
     (tmp_path / "empty").mkdir()
     if "BAD_ANNOTATION" in args:
         subs["BAD_ANNOTATION"] = str(_bad_annotation(tmp_path))
+    if "UNANNOTATED" in args:
+        d = _bad_annotation(tmp_path)
+        (d / "demo_00" / "annotations.yaml").unlink()
+        subs["UNANNOTATED"] = str(d)
     args = [subs.get(a, a) for a in args]
     assert generate.main(args + ["--output", str(tmp_path / "run")]) == 2
     err = capsys.readouterr().err.strip()

@@ -135,13 +135,12 @@ def record(task: str, seed: int, out: Path, variant: str = "D0", keep_failed: bo
     """sim_driver + recorder + teleop (foreground); on quit, stop all, write the scene sidecar and
     judge the demo (file_recording)."""
     from skillgen_ros import rosenv
+    from skillgen_ros.cli.node_logs import NodeLogs
 
     get_task(task)
     stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%S")
     bag = out / task / f"teleop_{stamp}"
     bag.parent.mkdir(parents=True, exist_ok=True)
-    from skillgen_ros.cli.node_logs import NodeLogs
-
     env = rosenv.ros_environment(dict(__import__("os").environ))
     logs = NodeLogs(out / task / "logs" / bag.name)  # the terminal is the teleop's: other nodes log to files
 
@@ -178,6 +177,8 @@ def record(task: str, seed: int, out: Path, variant: str = "D0", keep_failed: bo
         (bag / SIDECAR_SCENE).write_text(yaml.safe_dump({"task": task, "variant": variant, "seed": seed,
                                                          "demo": bag.name, "made_by": "teleop"}))
         file_recording(bag, task, keep_failed)
+    else:
+        print(f"no demo was recorded (the recorder wrote no {bag}); its log: {logs.path('recorder')}")
     return 0 if teleop is None or teleop.returncode in (0, 130) else 1
 
 

@@ -136,3 +136,25 @@ def test_a_goal_the_graph_rejects_is_one_line_and_nodes_log_to_the_run(ros_domai
     logs = tmp_path / "run" / "logs"
     assert {"datagen.log", "planner.log", "perception.log", "recorder.log"} <= {p.name for p in logs.iterdir()}
     assert "generate rejected: UNKNOWN_TASK" in (logs / "datagen.log").read_text()
+
+
+def test_launch_shows_the_end_of_a_dead_nodes_log(ros_domain, tmp_path):
+    import psutil
+
+    logs = tmp_path / "logs"
+    p = subprocess.Popen(SKILLGEN + ["launch", "mock_record", "--log-dir", str(logs)], env=node_env(ros_domain),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+                         start_new_session=True)
+    try:
+        assert wait_for(lambda: "mock_driver up" in ((logs / "mock_driver.log").read_text()
+                                                     if (logs / "mock_driver.log").is_file() else ""), 120)
+        victim = next(k for k in psutil.Process(p.pid).children() if "mock_driver" in " ".join(k.cmdline()))
+        victim.kill()
+        assert p.wait(60) != 0
+        err = p.stderr.read()
+        assert "'mock_driver' exited with code" in err and f"the end of its log {logs / 'mock_driver.log'}" in err
+        assert "mock_driver up" in err, err  # its last lines, so a crash is diagnosable from the terminal
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(30)

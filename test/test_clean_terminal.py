@@ -158,3 +158,9 @@ def test_launch_shows_the_end_of_a_dead_nodes_log(ros_domain, tmp_path):
         if p.poll() is None:
             p.kill()
             p.wait(30)
+
+
+def test_every_generate_option_has_help():
+    for act in generate._parser()._actions:
+        if act.option_strings and act.dest != "help":
+            assert act.help, f"skillgen generate {act.option_strings} has no help"

@@ -29,13 +29,15 @@ from skillgen_ros.core.validation import USE_DEFAULT
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="skillgen generate", description=__doc__.split("\n\n")[0])
-    p.add_argument("--task", default="Square")
-    p.add_argument("--variant", default="D1")
+    p.add_argument("--task", default="Square", help="Square, PickPlace, NutAssembly or Threading (default Square)")
+    p.add_argument("--variant", default="D1", help="reset distribution: D0, D1, D2 or a clutter variant (docs/tasks.md)")
     p.add_argument("--method", default="skillgen", help="skillgen, mimicgen or replay_noise")
-    p.add_argument("--attempts", type=int, default=50)
-    p.add_argument("--target-successes", type=int, default=0)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--first-index", type=int, default=0)
+    p.add_argument("--attempts", type=int, default=50, help="generation attempts (default 50)")
+    p.add_argument("--target-successes", type=int, default=0,
+                   help="stop once this many succeeded (0 = run every attempt; --attempts is then a cap)")
+    p.add_argument("--seed", type=int, default=0, help="run seed: attempt i depends only on (seed, i)")
+    p.add_argument("--first-index", type=int, default=0,
+                   help="index of the first attempt (shards of one run: disjoint ranges, one seed)")
     p.add_argument("--augment", action="store_true", help="initiation augmentation (t=0.08 m, r=80 deg)")
     p.add_argument("--selection", default="random",
                    help=f"skillgen: {strategy_help()}; random is the paper's; mimicgen uses its task config's "

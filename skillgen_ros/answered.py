@@ -40,3 +40,27 @@ def sleep_until_done(fut: Future, seconds: float) -> None:
     end = time.monotonic() + seconds
     while not fut.done() and time.monotonic() < end:
         time.sleep(0.01)
+
+
+def detached(fut: Future) -> Future:
+    """A future that completes with `fut`, but whose cancel() leaves `fut` pending.
+
+    For goals sent as readiness probes to an action server: `first_answer` cancels a probe that
+    was not answered in time, and cancelling rclpy's own goal future drops its record of the
+    request, so the server's late answer is logged as "Ignoring unexpected goal response. There may
+    be more than one action server" on the user's terminal (issue 24). Left pending, the late answer
+    completes the abandoned future quietly."""
+    from rclpy.task import Future as _Future
+
+    out = _Future()
+
+    def copy(f):
+        if out.done():
+            return
+        try:
+            out.set_result(f.result())
+        except Exception as e:  # noqa: BLE001 - the request's own error, handed on
+            out.set_exception(e)
+
+    fut.add_done_callback(copy)
+    return out

@@ -22,7 +22,7 @@ from skillgen_ros.action_client import SafeActionClient as ActionClient
 from rclpy.executors import SingleThreadedExecutor
 
 from skillgen_interfaces.action import Generate
-from skillgen_ros.answered import first_answer, sleep_until_done
+from skillgen_ros.answered import detached, first_answer, sleep_until_done
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.validation import USE_DEFAULT
 
@@ -55,7 +55,7 @@ class SkillGenClient:
         end = time.monotonic() + timeout
         if not self.client.wait_for_server(timeout_sec=timeout):
             return False
-        probe = first_answer(lambda: self.client.send_goal_async(Generate.Goal(task="")), sleep_until_done,
+        probe = first_answer(lambda: detached(self.client.send_goal_async(Generate.Goal(task=""))), sleep_until_done,
                              max(0.1, end - time.monotonic()))
         self._answering = probe is not None
         return self._answering

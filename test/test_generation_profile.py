@@ -1,6 +1,7 @@
 """Algorithm profiles (core/generation/profile.py): `paper` is the paper's Algorithm 1 (one initiation
 pose, no release moves, no planner extras, task success only); `skillgen_ros` (default) is ours."""
 import json
+import os
 
 import h5py
 import pytest
@@ -83,5 +84,6 @@ def test_datasets_record_the_profile_and_candidate_counts(demos, tmp_path):
             gen = json.loads(f["data"].attrs["env_args"])["generation"]
             assert gen["profile"] == "paper" and gen["initiation_candidates"] == 1
             assert gen["planner_extras"] is False and gen["release_moves"] is False and gen["check_collisions"] is False
+            assert gen["source_demos"] == [os.path.abspath(d.source) for d in demos]  # issue 24
             for d in f["data"].values():
                 assert list(d.attrs["initiation_candidates_used"]) == [1, 1]

@@ -51,7 +51,8 @@ def test_demos_make_cli_writes_annotated_bags_and_subsets(tmp_path, capsys):
     from skillgen_ros.core.skills.bag_demos import load_source_demos
     from skillgen_ros.core.tasks import get_task
 
-    assert demos.main(["make", "--task", "PickPlace", "--n", "1", "--subset", "1", "--out", str(tmp_path)]) == 0
+    # --n 1 with the default subset (min(3, n)): issue 24
+    assert demos.main(["make", "--task", "PickPlace", "--n", "1", "--out", str(tmp_path)]) == 0
     paths = demos.subset_paths(tmp_path / "PickPlace", "first1")
     assert [p.name for p in paths] == ["demo_00"] and (paths[0] / "annotations.yaml").is_file()
     (demo,) = load_source_demos(paths, get_task("PickPlace"))

@@ -98,7 +98,7 @@ def test_keys_move_the_ee_and_toggle_the_gripper(ros_domain, driver):
     w = _Watcher()
     master, slave = pty.openpty()
     proc = subprocess.Popen([str(VENV_BIN / "teleop"), "--ros-args", "--params-file", str(REPO / "params/teleop.yaml"),
-                             "-p", f"linear_step:={STEP}"], stdin=slave, stdout=subprocess.PIPE,
+                             "-p", f"linear_step:={STEP}", "-p", "task:=Square"], stdin=slave, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, env=node_env(ros_domain), cwd=REPO, text=True)
     os.close(slave)
     try:
@@ -129,7 +129,11 @@ def test_keys_move_the_ee_and_toggle_the_gripper(ros_domain, driver):
         assert wait_for(lambda: w.grip[0] < 0 and w.grip[1] > width0 - 0.005, 8), f"gripper did not open: {w.grip}"
         os.write(master, b"q")
         proc.wait(10)
-        assert proc.returncode == 0, proc.stdout.read()
+        out = proc.stdout.read()
+        assert proc.returncode == 0, out
+        # the status line (issue 24): pose, gripper, the next object of the task, the last key
+        assert "| EE " in out and "gripper 0.0" in out and "next square_nut handle" in out, out
+        assert "key w (+x)" in out and "key f (-z)" in out and "key space (gripper)" in out, out
     finally:
         if proc.poll() is None:
             proc.send_signal(2)

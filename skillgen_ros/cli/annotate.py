@@ -5,7 +5,8 @@
 
 Default: propose segments from gripper events and EE proximity (rules per task: TASK_RULES,
 or a YAML file with `--rules`, either {default:.., skills:{i:..}} or keyed by task name), apply
-`--override`s (by step, or by time with an `s` suffix), validate, and write the sidecar
+`--override`s (by step, or by time from the demo's first step with an `s` suffix: step / 20 Hz),
+validate, and write the sidecar
 `annotations.yaml` in the bag directory (`skillgen bag info` shows it). `--from-existing`
 starts from the bag's stored annotation instead of a new proposal; `--check` only validates the
 stored annotation and reports whether auto-annotation reproduces it (exit 1 if not valid).
@@ -22,36 +23,35 @@ import yaml
 from skillgen_ros.core.errors import AnnotationError, SkillGenError
 from skillgen_ros.core.geometry import pose_arrays_to_matrices
 from skillgen_ros.core.skills.annotation import (Annotation, apply_overrides, dumps_annotation, parse_override,
-                                                 save_annotation, validate_annotation)
+                                                 save_annotation, step_times, validate_annotation)
 from skillgen_ros.core.skills.auto_annotation import AnnotationRules, auto_annotate, rules_from_dict
 from skillgen_ros.core.skills.bag_demos import (annotation_path, expand_bag_paths, open_bag, read_annotation,
                                                 read_demo_arrays, read_scene)
 from skillgen_ros.core.tasks import get_task
+from skillgen_ros.core.tasks.skill_points import skill_point_offset
 
 
-def _kp(task: str, oid: str, name: str) -> list[float]:
-    return [float(v) for v in get_task(task).object(oid).keypoint(name)]
+def _kp(task: str, index: int) -> list[float]:
+    """Skill `index`'s working point in its object's frame (core/tasks/skill_points.py)."""
+    return [float(v) for v in skill_point_offset(get_task(task), index)]
 
 
 def _task_rules(task: str) -> dict:
     """Per-task proposal rules, matched to how demos approach each skill object (docs/source_demos.md)."""
-    nut = lambda i, n: {i: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, n, "handle")}}  # noqa
+    nut = lambda i: {i: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, i)}}  # noqa
     # a placement ends 30 steps (1.5 s) after the open: the fingers have opened and the hand has backed off
     # most of its 10 cm, so the wrist is clear of robosuite's 13 cm peg when the next motion is planned
-    peg = lambda i, p: {i: {"start_distance": 0.12, "post_steps": 30, "offset": _kp(task, p, "top")}}  # noqa
+    peg = lambda i: {i: {"start_distance": 0.12, "post_steps": 30, "offset": _kp(task, i)}}  # noqa
     if task == "Square":
-        return {"skills": {**nut(0, "square_nut"), **peg(1, "square_peg")}}
+        return {"skills": {**nut(0), **peg(1)}}
     if task == "NutAssembly":
-        return {"skills": {**nut(0, "square_nut"), **peg(1, "square_peg"),
-                           **nut(2, "round_nut"), **peg(3, "round_peg")}}
+        return {"skills": {**nut(0), **peg(1), **nut(2), **peg(3)}}
     if task == "PickPlace":
-        return {"skills": {0: {"start_distance": 0.06, "post_steps": 10, "offset": _kp(task, "milk", "top")},
-                           1: {"start_distance": 0.21, "post_steps": 5,
-                               "offset": _kp(task, "bin", "floor_center")}}}
+        return {"skills": {0: {"start_distance": 0.06, "post_steps": 10, "offset": _kp(task, 0)},
+                           1: {"start_distance": 0.21, "post_steps": 5, "offset": _kp(task, 1)}}}
     if task == "Threading":
-        return {"skills": {0: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, "needle", "handle")},
-                           1: {"start_distance": 0.19, "end_event": "demo_end",
-                               "offset": _kp(task, "tripod", "ring_center")}}}
+        return {"skills": {0: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, 0)},
+                           1: {"start_distance": 0.19, "end_event": "demo_end", "offset": _kp(task, 1)}}}
     return {}
 
 
@@ -88,11 +88,13 @@ def _task_of(path, name: str | None):
     return get_task(scene.task)
 
 
-def _summary(ann: Annotation, timestamps) -> str:
-    rows = [f"{ann.demo}: {ann.num_steps} steps ({ann.origin})"]
+def _summary(ann: Annotation) -> str:
+    """One line per skill; the seconds are the demo's control time (step / 20 Hz), as overrides take them."""
+    ts = step_times(ann.num_steps + 1)
+    rows = [f"{ann.demo}: {ann.num_steps} steps, {ts[-1]:.2f} s ({ann.origin})"]
     for s in ann.skills:
         rows.append(f"  skill {s.index} {s.object:12s} steps [{s.start_step:4d}, {s.end_step:4d})  "
-                    f"t [{timestamps[s.start_step]:6.2f}, {timestamps[min(s.end_step, len(timestamps) - 1)]:6.2f}] s")
+                    f"t [{ts[s.start_step]:6.2f}, {ts[s.end_step]:6.2f}) s")
     return "\n".join(rows)
 
 
@@ -123,7 +125,8 @@ def annotate_bag(path, task_name=None, rules_file=None, overrides=(), from_exist
         ann = propose(path, task, rules, arrays)
     if overrides:
         try:
-            ann = apply_overrides(ann, [parse_override(o) for o in overrides], arrays.timestamps, task)
+            ann = apply_overrides(ann, [parse_override(o) for o in overrides], step_times(len(arrays.timestamps)),
+                                  task)
         except AnnotationError as e:
             raise AnnotationError(f"{path}: {e.args[0]}", reason=e.reason) from e
     try:
@@ -132,7 +135,7 @@ def annotate_bag(path, task_name=None, rules_file=None, overrides=(), from_exist
         raise AnnotationError(f"{path}: {e.args[0]}", reason=e.reason) from e
     target = Path(out) if out else annotation_path(path)
     save_annotation(str(target), ann)
-    print(_summary(ann, arrays.timestamps) + f"\n  -> {target}")
+    print(_summary(ann) + f"\n  -> {target}")
     if show:
         print(dumps_annotation(ann))
     return 0
@@ -144,7 +147,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--task", help="task name (default: the bag's scene record)")
     p.add_argument("--rules", help="YAML annotation rules (default: the built-in rules of the task)")
     p.add_argument("--override", action="append", default=[], metavar="SKILL.EDGE=STEP|SECONDSs",
-                   help="move a skill boundary, e.g. 1.start=120 or 0.end=4.25s (repeatable)")
+                   help="move a skill boundary, e.g. 1.start=120 or 0.end=4.25s: seconds of the demo's control "
+                        "time from its first step (step / 20 Hz); outside the demo is an error (repeatable)")
     p.add_argument("--from-existing", action="store_true", help="start from the stored annotation")
     p.add_argument("--check", action="store_true", help="only validate the stored annotation")
     p.add_argument("--out", help="write here instead of <bag>/annotations.yaml (one bag only)")

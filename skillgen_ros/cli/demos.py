@@ -1,15 +1,19 @@
 """`skillgen demos`: make the shipped source demos, or record one by teleoperation.
 
     skillgen demos make --task Square [--task ...|all] [--n 10] [--subset 3] [--out bags] [--force]
-    skillgen demos record --task Square [--seed 0] [--out bags]
+    skillgen demos record --task Square [--seed 0] [--out recordings] [--keep-failed]
 
 `make` runs the scripted demonstrator (core/demonstrator: it exists only for this) on the
 pybullet SimWorld in-process, on the task's D0 scenes with scene seeds 1000, 1001, ...; a demo
 the sim judges failed is redone in the same scene with a new demonstrator seed, as a person would.
 Each demo becomes bags/<task>/demo_XX/ (rosbag2-layout MCAP, zstd) with the scene as MCAP
 metadata and an auto-annotation sidecar annotations.yaml; bags/<task>/subsets.yaml lists the
-demos and the 3-demo subset. `record` starts sim_driver (reset to the task's scene), the
-recorder into bags/<task>/teleop_<UTC>/ and the keyboard teleop in this terminal (docs/teleop.md).
+demos and the 3-demo subset (min(3, n) by default). `record` starts sim_driver (reset to the
+task's scene), the recorder into recordings/<task>/teleop_<UTC>/ (not bags/<task>/, which
+`skillgen generate` reads: an unannotated recording there would break it) and the keyboard
+teleop in this terminal with its status line (docs/teleop.md). On `q` it runs the task's
+success rule on the recorded demo and prints the verdict; a failed demo is moved to
+recordings/<task>/failed/ unless `--keep-failed`. A demo is used only once annotated.
 """
 from __future__ import annotations
 
@@ -29,6 +33,10 @@ from skillgen_ros.core.tasks import TASK_NAMES, get_task
 SCENE_SEED_BASE = 1000
 MAX_ATTEMPTS = 6
 SUBSETS_FILE = "subsets.yaml"
+DEFAULT_SUBSET = 3  # the paper's small source-demo subset; capped at --n
+MAKE_OUT = "bags"  # where the shipped source demos live (and `skillgen generate` reads by default)
+RECORD_OUT = "recordings"  # teleop recordings: their own folder until annotated and chosen
+FAILED_DIR = "failed"  # recordings/<task>/failed/: demos whose success check failed
 
 
 def demonstrator_seed(scene_seed: int, attempt: int) -> int:
@@ -123,28 +131,35 @@ def _exe(name: str) -> str:
     return str(Path(sys.prefix) / "bin" / name)
 
 
-def record(task: str, seed: int, out: Path, variant: str = "D0") -> int:
-    """sim_driver + recorder + teleop (foreground); on quit, stop all and write the scene sidecar."""
+def record(task: str, seed: int, out: Path, variant: str = "D0", keep_failed: bool = False) -> int:
+    """sim_driver + recorder + teleop (foreground); on quit, stop all, write the scene sidecar and
+    judge the demo (file_recording)."""
     from skillgen_ros import rosenv
+    from skillgen_ros.cli.node_logs import NodeLogs
 
     get_task(task)
     stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%S")
     bag = out / task / f"teleop_{stamp}"
     bag.parent.mkdir(parents=True, exist_ok=True)
     env = rosenv.ros_environment(dict(__import__("os").environ))
+    logs = NodeLogs(out / task / "logs" / bag.name)  # the terminal is the teleop's: other nodes log to files
+
+    def start(name: str, args: list[str]) -> subprocess.Popen:
+        with logs.open(name) as f:
+            return subprocess.Popen([_exe(name), "--ros-args", *args], env=env, stdin=subprocess.DEVNULL,
+                                    stdout=f, stderr=subprocess.STDOUT)
     # lockstep: the sim advances one control period per osc_target, so the recorded command stream
     # is exactly the demo's control steps (and replays open-loop)
-    procs = [subprocess.Popen([_exe("sim_driver"), "--ros-args", "-p", f"initial_task:={task}",
-                               "-p", f"initial_variant:={variant}", "-p", f"initial_seed:={seed}",
-                               "-p", "timing_mode:=lockstep", "-p", "publish_points:=false"],
-                              env=env, stdin=subprocess.DEVNULL)]
+    procs = [start("sim_driver", ["-p", f"initial_task:={task}", "-p", f"initial_variant:={variant}",
+                                  "-p", f"initial_seed:={seed}", "-p", "timing_mode:=lockstep",
+                                  "-p", "publish_points:=false"])]
     try:
         topics = "[" + ",".join(f'"{t}"' for t in SOURCE_TOPICS) + "]"
-        procs.append(subprocess.Popen([_exe("recorder"), "--ros-args", "-p", f"output:={bag}",
-                                       "-p", f"topics:={topics}"], env=env, stdin=subprocess.DEVNULL))
-        print(f"recording {task}/{variant} seed {seed} into {bag}; teleop keys: docs/teleop.md (q quits)",
+        procs.append(start("recorder", ["-p", f"output:={bag}", "-p", f"topics:={topics}"]))
+        print(f"recording {task}/{variant} seed {seed} into {bag} (node logs in {logs.dir}); keys and where "
+              f"to grasp: docs/teleop.md (q quits and judges the demo); cameras: docs/foxglove/skillgen.json",
               flush=True)
-        teleop = subprocess.run([_exe("teleop")], env=env)  # the foreground: this terminal's keys
+        teleop = subprocess.run([_exe("teleop"), "--ros-args", "-p", f"task:={task}"], env=env)  # this terminal
     except KeyboardInterrupt:
         teleop = None
     finally:
@@ -155,38 +170,78 @@ def record(task: str, seed: int, out: Path, variant: str = "D0") -> int:
                     p.wait(15)
                 except subprocess.TimeoutExpired:
                     p.kill()
+        logs.close()
     if bag.is_dir():
         from skillgen_ros.core.skills.bag_demos import SIDECAR_SCENE
 
         (bag / SIDECAR_SCENE).write_text(yaml.safe_dump({"task": task, "variant": variant, "seed": seed,
                                                          "demo": bag.name, "made_by": "teleop"}))
-        print(f"wrote {bag}; next: skillgen annotate {bag} --task {task}")
+        file_recording(bag, task, keep_failed)
+    else:
+        print(f"no demo was recorded (the recorder wrote no {bag}); its log: {logs.path('recorder')}")
     return 0 if teleop is None or teleop.returncode in (0, 130) else 1
 
 
-def main(argv: list[str] | None = None) -> int:
+def file_recording(bag: Path, task: str, keep_failed: bool = False) -> tuple[bool, Path]:
+    """Run the task's success rule on a finished recording, print the verdict, and move a failed demo
+    to <task dir>/failed/ (out of the folder demos are taken from) unless keep_failed. Returns
+    (success, where the bag is now)."""
+    from skillgen_ros.core.teleop import demo_verdict
+
+    try:
+        v = demo_verdict(bag, get_task(task))
+        ok, detail = v.success, v.detail
+    except SkillGenError as e:  # e.g. q pressed before the first command: nothing to judge
+        ok, detail = False, str(e)
+    print(f"task success: {'YES' if ok else 'NO'} ({detail})", flush=True)
+    if ok or keep_failed:
+        if not ok:
+            print(f"kept the failed demo in {bag} (--keep-failed)")
+        print(f"wrote {bag}; next: skillgen annotate {bag} --task {task}")
+        return ok, bag
+    dest = bag.parent / FAILED_DIR / bag.name
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    shutil.move(str(bag), str(dest))
+    print(f"moved the failed demo to {dest}, out of {bag.parent}; record again, or pass --keep-failed "
+          f"to keep failed demos where they were recorded")
+    return ok, dest
+
+
+def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="skillgen demos", description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
     m = sub.add_parser("make", help="make source demos with the scripted demonstrator (pybullet)")
-    m.add_argument("--task", action="append", required=True, help=f"one of {list(TASK_NAMES)} or 'all'")
-    m.add_argument("--n", type=int, default=10)
-    m.add_argument("--subset", type=int, default=3, help="size of the small subset listed in subsets.yaml")
-    m.add_argument("--variant", default="D0")
-    m.add_argument("--out", default="bags")
+    m.add_argument("--task", action="append", required=True,
+                   help=f"task to make demos for, one of {list(TASK_NAMES)} or 'all' (repeatable)")
+    m.add_argument("--n", type=int, default=10, help="demos per task (default 10, the paper's count)")
+    m.add_argument("--subset", type=int, default=None,
+                   help=f"size of the small subset listed in subsets.yaml (default min({DEFAULT_SUBSET}, n))")
+    m.add_argument("--variant", default="D0", help="reset distribution of the demo scenes (default D0, the paper's)")
+    m.add_argument("--out", default=MAKE_OUT, help=f"folder for <task>/demo_XX/ (default {MAKE_OUT})")
     m.add_argument("--force", action="store_true", help="remake demos that already exist")
     r = sub.add_parser("record", help="record one demo by keyboard teleoperation on the sim")
-    r.add_argument("--task", required=True)
-    r.add_argument("--seed", type=int, default=0)
-    r.add_argument("--variant", default="D0")
-    r.add_argument("--out", default="bags")
-    a = p.parse_args(argv)
+    r.add_argument("--task", required=True, help=f"task to demonstrate, one of {list(TASK_NAMES)}")
+    r.add_argument("--seed", type=int, default=0, help="scene seed: where the objects start (default 0)")
+    r.add_argument("--variant", default="D0", help="reset distribution of the scene (default D0)")
+    r.add_argument("--out", default=RECORD_OUT,
+                   help=f"folder for <task>/teleop_<UTC time>/ (default {RECORD_OUT}; not bags/, which "
+                        "generation reads)")
+    r.add_argument("--keep-failed", action="store_true",
+                   help=f"keep a demo that fails the task's success check where it was recorded (default: "
+                        f"move it to <out>/<task>/{FAILED_DIR}/)")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    a = _parser().parse_args(argv)
     if a.cmd == "make":
         tasks = list(TASK_NAMES) if "all" in a.task else a.task
-        if a.n < 1 or not 1 <= a.subset <= a.n:
-            raise InvalidInputError(f"--n must be >= 1 and --subset in [1, n], got {a.n}, {a.subset}",
+        subset = min(DEFAULT_SUBSET, a.n) if a.subset is None else a.subset
+        if a.n < 1 or not 1 <= subset <= a.n:
+            raise InvalidInputError(f"--n must be >= 1 and --subset in [1, n], got {a.n}, {subset}",
                                     "BAD_ARGUMENTS")
-        return make(tasks, a.n, a.subset, Path(a.out), a.force, a.variant)
-    return record(a.task, a.seed, Path(a.out), a.variant)
+        return make(tasks, a.n, subset, Path(a.out), a.force, a.variant)
+    return record(a.task, a.seed, Path(a.out), a.variant, a.keep_failed)
 
 
 if __name__ == "__main__":

@@ -93,12 +93,13 @@ class HspClient:
 
     def wait_for_server(self, timeout: float) -> bool:
         """Discovered and answering: a probe goal (empty task, rejected unrun) got its answer."""
-        from skillgen_ros.answered import first_answer, sleep_until_done
+        from skillgen_ros.answered import detached, first_answer, sleep_until_done
 
         end = time.monotonic() + timeout
         if not self.action.wait_for_server(timeout_sec=timeout):
             return False
-        return first_answer(lambda: self.action.send_goal_async(self.RunTask.Goal(task="")), sleep_until_done,
+        return first_answer(lambda: detached(self.action.send_goal_async(self.RunTask.Goal(task=""))),
+                            sleep_until_done,
                             max(0.1, end - time.monotonic())) is not None
 
     def send(self, timeout: float = 30.0, **fields):

@@ -5,10 +5,15 @@
     skillgen generate --profile paper       the paper's Algorithm 1 (see core/generation/profile.py)
     skillgen generate --in-process          same algorithm, no ROS graph (SimGenerationEnv)
 
-Graph mode launches the `datagen` graph (sim_driver in lockstep, perception in estimate mode,
-planner, skill_replay, datagen, recorder) as separate processes, sends a Generate goal through
-SkillGenClient, draws a progress bar from the feedback, prints the success rate and where the
-dataset, bag and report are, and stops the graph. Ctrl-C cancels the run cleanly.
+First, before any node starts, `preflight` checks what can be checked here: task, variant,
+method, selection, profile, output dir, and that the source demos load with valid annotations;
+a mistake is one line "REASON: message" and exit 2 within a second or two. Graph mode then
+launches the `datagen` graph (sim_driver in lockstep, perception in estimate mode, planner,
+skill_replay, datagen, recorder) as separate processes, each logging to <output>/logs/<node>.log
+(only their warnings and errors reach the terminal; `--verbose` streams everything), sends a
+Generate goal through SkillGenClient, draws a progress bar from the feedback, prints the success
+rate and where the dataset, bag, report and logs are, and stops the graph. Ctrl-C cancels the run
+cleanly.
 """
 from __future__ import annotations
 
@@ -18,21 +23,26 @@ import sys
 import time
 
 from skillgen_ros.core.errors import SkillGenError
+from skillgen_ros.core.generation.selection import strategy_help
 from skillgen_ros.core.validation import USE_DEFAULT
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="skillgen generate", description=__doc__.split("\n\n")[0])
-    p.add_argument("--task", default="Square")
-    p.add_argument("--variant", default="D1")
+    p.add_argument("--task", default="Square", help="Square, PickPlace, NutAssembly or Threading (default Square)")
+    p.add_argument("--variant", default="D1",
+                   help="reset distribution: D0, D1, D2 or a clutter variant (docs/tasks.md)")
     p.add_argument("--method", default="skillgen", help="skillgen, mimicgen or replay_noise")
-    p.add_argument("--attempts", type=int, default=50)
-    p.add_argument("--target-successes", type=int, default=0)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--first-index", type=int, default=0)
+    p.add_argument("--attempts", type=int, default=50, help="generation attempts (default 50)")
+    p.add_argument("--target-successes", type=int, default=0,
+                   help="stop once this many succeeded (0 = run every attempt; --attempts is then a cap)")
+    p.add_argument("--seed", type=int, default=0, help="run seed: attempt i depends only on (seed, i)")
+    p.add_argument("--first-index", type=int, default=0,
+                   help="index of the first attempt (shards of one run: disjoint ranges, one seed)")
     p.add_argument("--augment", action="store_true", help="initiation augmentation (t=0.08 m, r=80 deg)")
     p.add_argument("--selection", default="random",
-                   help="skillgen: random (paper) or nearest_neighbor; mimicgen uses its task config's (mimicgen.py)")
+                   help=f"skillgen: {strategy_help()}; random is the paper's; mimicgen uses its task config's "
+                        "(mimicgen.py)")
     p.add_argument("--source-demos", default="", help="directory of source bags (default bags/<task>)")
     p.add_argument("--output", default="", help="output directory (default out/<task>_<variant>_<method>_seed<seed>)")
     p.add_argument("--no-bag", action="store_true", help="do not record the session to MCAP")
@@ -52,7 +62,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--observation-source", default="ground_truth", choices=["ground_truth", "estimate"],
                    help="what obs/<id>_pose records: the sim's true poses, or the estimates (in-process; the "
                         "graph uses params/datagen.yaml's observation_source)")
-    p.add_argument("--startup-timeout", type=float, default=60.0)
+    p.add_argument("--startup-timeout", type=float, default=60.0,
+                   help="seconds to wait for the graph's datagen node to answer")
+    p.add_argument("--verbose", action="store_true",
+                   help="stream every node's output here (default: <output>/logs/<node>.log; only warnings, "
+                        "errors, the progress bar and the summary here)")
     return p
 
 
@@ -89,24 +103,45 @@ def _print_result(attempts, successes, failures: dict, paths: dict) -> None:
             print(f"{k:8s} {v}")
 
 
-def run_in_process(a) -> int:
-    from tqdm import tqdm
+def _request(a):
+    from skillgen_ros.core.generation.session import RunRequest
 
-    from skillgen_ros.core.generation.session import RunRequest, run_generation, validate_request
-    from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
+    return RunRequest(task=a.task, variant=a.variant, method=a.method, attempts=a.attempts,
+                      target_successes=a.target_successes, seed=a.seed, first_index=a.first_index,
+                      augment=a.augment, selection=a.selection, output_dir=_output(a), source_demos=a.source_demos,
+                      observation_source=a.observation_source,
+                      **({"video_attempts": a.video_attempts} if a.video_attempts >= 0 else {}),
+                      **({"initiation_candidates": a.initiation_candidates} if a.initiation_candidates else {}),
+                      **({"profile": a.profile} if a.profile else {}))
+
+
+def preflight(a):
+    """Check, before any node starts, everything the graph would reject later: the request (task,
+    method, selection, profile, counts, output dir), the variant, and the source demos with their
+    annotations (loaded exactly as datagen loads them). Returns (RunRequest, source demos)."""
+    from skillgen_ros.core.generation.session import validate_request
     from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
     from skillgen_ros.core.tasks import TASK_NAMES, get_task
 
-    req = RunRequest(task=a.task, variant=a.variant, method=a.method, attempts=a.attempts,
-                     target_successes=a.target_successes, seed=a.seed, first_index=a.first_index,
-                     augment=a.augment, selection=a.selection, output_dir=_output(a), source_demos=a.source_demos,
-                     observation_source=a.observation_source,
-                     **({"video_attempts": a.video_attempts} if a.video_attempts >= 0 else {}),
-                     **({"initiation_candidates": a.initiation_candidates} if a.initiation_candidates else {}),
-                     **({"profile": a.profile} if a.profile else {}))
-    validate_request(req, TASK_NAMES)
-    paths = expand_bag_paths([a.source_demos or os.path.join("bags", a.task)])
-    demos = load_source_demos(paths, get_task(a.task)) if paths else []
+    req = _request(a)
+    get_task(req.task).objects_for(req.variant)  # UNKNOWN_TASK / UNKNOWN_VARIANT, naming the known ones
+    demos_dir = a.source_demos or os.path.join("bags", a.task)
+    paths = expand_bag_paths([demos_dir])
+    if not paths:
+        raise SkillGenError(f"no source demo bags under {demos_dir}", reason="NO_SOURCE_DEMOS")
+    demos = load_source_demos(paths, get_task(a.task))
+    validate_request(req, TASK_NAMES)  # last: it creates the output dir
+    return req, demos
+
+
+def run_in_process(a) -> int:
+    from tqdm import tqdm
+
+    from skillgen_ros.core.generation.session import run_generation
+    from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
+    from skillgen_ros.core.tasks import get_task
+
+    req, demos = preflight(a)
     env = SimGenerationEnv(SimEnvConfig(perception=a.perception, seed=a.seed))
     bar = tqdm(total=a.attempts, unit="attempt", dynamic_ncols=True)
 
@@ -131,10 +166,12 @@ def run_graph(a) -> int:
     from skillgen_ros.cli.launcher import graph_client
     from skillgen_ros.client import SkillGenClient
 
+    preflight(a)  # before any node starts
+    logs = None if a.verbose else os.path.join(_output(a), "logs")
     # datagen and the recorder write only under their roots; an explicit --output is the user's choice
     roots = ["--ros-args", "-p", f"writable_roots:=['{os.path.abspath(a.output)}']"] if a.output else []
     with graph_client("datagen", SkillGenClient, "datagen 'generate'", a.startup_timeout,
-                      ros_args=roots) as (graph, client):
+                      ros_args=roots, log_dir=logs) as (graph, client):
         ok = client.generate(task=a.task, variant=a.variant, method=a.method, attempts=a.attempts,
                              target_successes=a.target_successes, seed=a.seed, first_index=a.first_index,
                              augment=a.augment, augment_translation=USE_DEFAULT, augment_rotation_deg=USE_DEFAULT,
@@ -144,28 +181,31 @@ def run_graph(a) -> int:
                              initiation_candidates=a.initiation_candidates, profile=a.profile)
         if not ok:
             raise SkillGenError("datagen rejected the goal (busy)", reason="REJECTED")
-        bar = tqdm(total=a.attempts, unit="attempt", dynamic_ncols=True)
+        bar = None  # drawn from the first feedback: a goal that fails at once prints only its error line
         try:
             while not client.is_done():
                 fb = client.feedback()
                 if fb is not None:
+                    bar = bar or tqdm(total=a.attempts, unit="attempt", dynamic_ncols=True)
                     bar.update(fb.attempts - bar.n)
                     bar.set_postfix(success=f"{fb.successes}/{fb.attempts}", rate=f"{100 * fb.success_rate:.0f}%",
                                     eta=f"{fb.eta_seconds:.0f}s")
                 if graph.poll() is not None:
-                    raise SkillGenError(f"the graph stopped (exit {graph.returncode})", reason="GRAPH_DIED")
+                    raise SkillGenError(f"the graph stopped (exit {graph.returncode})"
+                                        + (f"; node logs in {logs}" if logs else ""), reason="GRAPH_DIED")
                 time.sleep(0.2)
         except KeyboardInterrupt:
             client.cancel()
             print("\ncanceling ...", file=sys.stderr)
         finally:
-            bar.close()
+            if bar is not None:
+                bar.close()
         res = client.result(timeout=120)
         if not res.accepted:
             raise SkillGenError(res.message, reason=res.reason)
         _print_result(res.attempts, res.successes, {f.reason: f.count for f in res.failures},
                       {"dataset": res.dataset_path, "failed": res.failed_path, "report": res.report_path,
-                       "bag": res.bag_path})
+                       "bag": res.bag_path, "logs": logs})
         if res.reason not in ("OK", "CANCELED"):
             print(f"run ended early: {res.reason}: {res.message}", file=sys.stderr)
             return 1

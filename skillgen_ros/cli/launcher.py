@@ -5,7 +5,10 @@ Executables are resolved through the ament index (<prefix>/lib/skillgen_ros/<exe
 (rosenv.node_environment). `launch` starts a graph's nodes as separate processes, forwards
 Ctrl-C/SIGTERM to them, and if one dies on its own it names that node, stops the rest and exits
 non-zero (with `--respawn` it starts the node again instead, like launch's respawn=True). A node still running 15 s after the stop is named, asked for its stacks (SIGUSR1) and
-terminated, like ros2 launch's SIGTERM/SIGKILL escalation.
+terminated, like ros2 launch's SIGTERM/SIGKILL escalation. With a log dir (the `skillgen launch`
+default, `logs/<graph>_<UTC time>/`; `skillgen generate` uses the run's output dir) each node's
+output goes to a file of its own and the terminal shows only its warnings and errors
+(cli/node_logs.py); `--verbose` streams every node's output as before.
 """
 from __future__ import annotations
 
@@ -56,13 +59,33 @@ def run(exe: str, args: list[str]) -> int:
 RESPAWN_MAX = 10  # restarts per node before --respawn gives up on it (a crash loop is a failure)
 
 
+def default_log_dir(graph: str) -> str:
+    return os.path.join("logs", f"{graph}_{time.strftime('%Y%m%dT%H%M%S', time.gmtime())}")
+
+
 def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.1, stop_timeout: float = 15.0,
-           respawn: bool = False) -> int:
+           respawn: bool = False, log_dir: str | None = None) -> int:
     """Run a graph until Ctrl-C or a node dies; a node still running `stop_timeout` s after the
     stop is named, has its Python stacks dumped (SIGUSR1, runtime.py) and is terminated. With
-    `respawn` (launch's respawn=True) a node that dies is started again, up to RESPAWN_MAX times."""
+    `respawn` (launch's respawn=True) a node that dies is started again, up to RESPAWN_MAX times.
+    With `log_dir` each node's output goes to <log_dir>/<node>.log and only its warnings and
+    errors reach the terminal; without, every node streams to the terminal."""
     nodes = load_graph(graph)
     env = rosenv.node_environment(dict(os.environ))
+    logs = None
+    if log_dir:
+        from skillgen_ros.cli.node_logs import NodeLogs
+
+        logs = NodeLogs(log_dir)
+        print(f"[launch] {graph}: node logs in {log_dir} (warnings and errors shown here; --verbose streams all)",
+              file=sys.stderr, flush=True)
+
+    def start(label: str, cmd: list[str]) -> subprocess.Popen:
+        if logs is None:
+            return subprocess.Popen(cmd, env=env, preexec_fn=_hold_stop_signals)
+        with logs.open(label) as f:  # the child keeps its own descriptor
+            return subprocess.Popen(cmd, env=env, preexec_fn=_hold_stop_signals, stdout=f, stderr=subprocess.STDOUT)
+
     procs: list[tuple[str, subprocess.Popen]] = []
     cmds: dict[str, list[str]] = {}
     restarts: dict[str, int] = {}
@@ -80,8 +103,9 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
             if stopping["flag"]:  # Ctrl-C while starting: start no more
                 break
             cmd = [str(resolve_executable(proc.exe)), *proc.args, *(extra_ros_args or [])]
-            print(f"[launch] starting {proc.label}: {' '.join(cmd)}", file=sys.stderr, flush=True)
-            child = subprocess.Popen(cmd, env=env, preexec_fn=_hold_stop_signals)
+            if logs is None:
+                print(f"[launch] starting {proc.label}: {' '.join(cmd)}", file=sys.stderr, flush=True)
+            child = start(proc.label, cmd)
             procs.append((proc.label, child))
             cmds[proc.label] = cmd
             if stopping["flag"]:  # the signal came while this one was starting: it missed the forward
@@ -100,13 +124,16 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
                         restarts[name] = restarts.get(name, 0) + 1
                         print(f"[launch] node '{name}' exited with code {rc}; respawning it "
                               f"({restarts[name]}/{RESPAWN_MAX})", file=sys.stderr, flush=True)
-                        procs[i] = (name, subprocess.Popen(cmds[name], env=env, preexec_fn=_hold_stop_signals))
+                        procs[i] = (name, start(name, cmds[name]))
                         continue
                     failed = (name, rc)
                     break
                 if failed:
                     print(f"[launch] node '{failed[0]}' exited with code {failed[1]}; stopping the graph",
                           file=sys.stderr, flush=True)
+                    if logs is not None:
+                        print(f"[launch] the end of its log {logs.path(failed[0])}:\n  "
+                              + "\n  ".join(logs.tail(failed[0])), file=sys.stderr, flush=True)
                     _forward(signal.SIGINT, None)
                     stopping["flag"] = True
             if not alive:
@@ -115,6 +142,9 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
                 stop_deadline = time.monotonic() + stop_timeout
             if stop_deadline is not None and time.monotonic() > stop_deadline:
                 escalated = _escalate(alive)
+                if logs is not None:
+                    for name in escalated:
+                        print(f"[launch] {name}'s stacks are in {logs.path(name)}", file=sys.stderr, flush=True)
                 break
             time.sleep(poll)
         _wait_all(procs, timeout=10.0)
@@ -131,6 +161,8 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
         for _, p in procs:
             if p.poll() is None:
                 p.kill()
+        if logs is not None:
+            logs.close()
 
 
 def _escalate(alive: list[tuple[str, subprocess.Popen]]) -> list[str]:
@@ -159,13 +191,15 @@ def _wait_all(procs, timeout: float) -> None:
 
 @contextmanager
 def graph_client(graph: str, make_client, server: str, startup_timeout: float, ros_args: list[str] | None = None,
-                 respawn: bool = False):
+                 respawn: bool = False, log_dir: str | None = None):
     """Launch `graph` (`skillgen launch`) in its own session, yield an action client once `server`
     answers, and stop the graph on exit (SIGINT, which the launcher forwards to every node once;
     SIGKILL to the session after 30 s). GRAPH_DIED / GRAPH_NOT_READY if it never comes up.
     ros_args ("--ros-args", "-p", "node:name:=value", ...) reach every node, as `skillgen launch`'s do;
-    `respawn` restarts a node that dies (`--respawn`)."""
-    proc = subprocess.Popen([sys.executable, "-m", "skillgen_ros.cli.main", "launch", graph,
+    `respawn` restarts a node that dies (`--respawn`). With `log_dir` the nodes log there (only
+    warnings and errors reach the terminal); without, they stream to the terminal (`--verbose`)."""
+    logging = ["--log-dir", log_dir] if log_dir else ["--verbose"]
+    proc = subprocess.Popen([sys.executable, "-m", "skillgen_ros.cli.main", "launch", graph, *logging,
                              *(["--respawn"] if respawn else []), *(ros_args or [])],
                             env=rosenv.ros_environment(dict(os.environ)), start_new_session=True)
     client = None

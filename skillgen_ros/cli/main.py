@@ -1,7 +1,8 @@
 """`skillgen` entry point: run, launch, bag, and the product's commands.
 
     skillgen run <exe> [--ros-args ...]     like `ros2 run skillgen_ros <exe>`
-    skillgen launch <graph> [--respawn]     like `ros2 launch skillgen_ros skillgen.launch.py graph:=<graph>`
+    skillgen launch <graph> [--respawn] [--verbose] [--log-dir DIR]
+                                            like `ros2 launch skillgen_ros skillgen.launch.py graph:=<graph>`
     skillgen bag info <bag>                 like `ros2 bag info`
     skillgen graphs                         list the graphs in graphs.yaml
 
@@ -36,8 +37,9 @@ def _parser() -> argparse.ArgumentParser:
     la = sub.add_parser("launch", help="start a named graph of nodes")
     la.add_argument("graph")
     la.add_argument("ros_args", nargs=argparse.REMAINDER,
-                    help="--respawn (restart a node that dies, like launch's respawn=True), then extra --ros-args "
-                         "for every node")
+                    help="--respawn (restart a node that dies, like launch's respawn=True), --verbose (stream "
+                         "every node's output here instead of to logs/<graph>_<UTC time>/<node>.log), "
+                         "--log-dir DIR (where the node logs go), then extra --ros-args for every node")
     sub.add_parser("graphs", help="list graphs")
     for name, (_, helptext) in DELEGATED.items():
         d = sub.add_parser(name, help=helptext, add_help=False)
@@ -58,8 +60,13 @@ def main(argv: list[str] | None = None) -> int:
         if ns.cmd == "launch":
             from skillgen_ros.cli.launcher import launch
 
-            extra = [a for a in ns.ros_args if a not in ("--ros-args", "--respawn")]
-            return launch(ns.graph, extra, respawn="--respawn" in ns.ros_args)
+            from skillgen_ros.cli.launcher import default_log_dir
+
+            words, log_dir = _take_option(ns.ros_args, "--log-dir")
+            extra = [a for a in words if a not in ("--ros-args", "--respawn", "--verbose")]
+            verbose = "--verbose" in words
+            return launch(ns.graph, extra, respawn="--respawn" in words,
+                          log_dir=None if verbose else (log_dir or default_log_dir(ns.graph)))
         if ns.cmd == "graphs":
             from skillgen_ros.graphs import load_graphs
 
@@ -72,6 +79,22 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
+
+
+def _take_option(words: list[str], name: str) -> tuple[list[str], str | None]:
+    """Remove `name VALUE` or `name=VALUE` from words; returns (the rest, VALUE or None)."""
+    rest, value, k = [], None, 0
+    while k < len(words):
+        w = words[k]
+        if w == name and k + 1 < len(words):
+            value, k = words[k + 1], k + 2
+            continue
+        if w.startswith(name + "="):
+            value = w.split("=", 1)[1]
+        else:
+            rest.append(w)
+        k += 1
+    return rest, value
 
 
 def _delegate(cmd: str, rest: list[str]) -> int:

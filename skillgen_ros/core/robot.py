@@ -24,6 +24,7 @@ V_MAX = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
 A_MAX = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
 J_MAX = np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0])
 GRIPPER_MAX_WIDTH = 0.08  # metres between the fingers, fully open
+CONTROL_HZ = 20.0  # control steps per second (robosuite's control_freq): one osc_target per step
 
 # A comfortable "ready" pose: EE about 0.5 m in front of the base, pointing down.
 Q_HOME = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 1.9, 0.785398])

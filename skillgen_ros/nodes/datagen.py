@@ -186,7 +186,9 @@ class DatagenNode(Node):
             self.env.load_demos(req.task)  # outside the attempts' time, and a clear early error
         except SkillGenError as e:
             res.accepted, res.reason, res.message = False, e.reason, str(e.args[0])
-            self.get_logger().error(f"generate rejected: {e}")
+            # the client gets the reason in the result and reports it; an ERROR here would show twice on
+            # `skillgen generate`'s terminal (node warnings and errors reach it, cli/node_logs.py)
+            self.get_logger().info(f"generate rejected: {e}")
             goal_handle.abort()
             return res
         except Exception as e:  # noqa: BLE001 -- a bug must answer with a reason, not kill the goal

@@ -39,7 +39,7 @@ from skillgen_interfaces.action import ReplaySkill
 from skillgen_interfaces.msg import OscTarget, SceneObject
 from skillgen_interfaces.srv import (CaptureCameras, EstimatePoses, LoadDemos, PlanToPose, ResetScene, StateHistory,
                                      TaskSuccess)
-from skillgen_ros.answered import first_answer
+from skillgen_ros.answered import detached, first_answer
 from skillgen_ros.core.errors import NoAnswerError, SkillGenError
 from skillgen_ros.core.generation.episode import Observation
 from skillgen_ros.core.generation.grasp import CLOSE_PERIODS, GraspTracker, beliefs_along, grasp_step
@@ -262,7 +262,7 @@ class RosGraphEnv:
                 missing.append(name)
         if not self.replay_ac.wait_for_server(timeout_sec=max(0.1, end - time.monotonic())):
             missing.append("replay_skill")
-        elif first_answer(lambda: self.replay_ac.send_goal_async(ReplaySkill.Goal()), wait_future,
+        elif first_answer(lambda: detached(self.replay_ac.send_goal_async(ReplaySkill.Goal())), wait_future,
                           max(0.1, end - time.monotonic())) is None:  # answered probe: see answered.py
             missing.append("replay_skill (discovered, not answering)")
         return missing

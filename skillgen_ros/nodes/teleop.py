@@ -16,6 +16,12 @@ Keys (terminal in raw mode; world / robot-base frame, x forward, y left, z up):
 Each key press moves the target by `linear_step` metres or `angular_step` radians; holding a
 key repeats it at the terminal's auto-repeat rate.
 
+Status line: `status_hz` times a second (5) the node prints one line to its terminal with the
+measured EE pose, the gripper's width and grasp state, the distance from the hand to the next
+skill's object point (`task` parameter; core/teleop.py, core/tasks/skill_points.py) and the last
+key, rewritten in place on a terminal; to a pipe it prints a new line only when the key, the grasp
+or the next skill changes.
+
 3D mouse: if `spacemouse_device` (default: the first /dev/input/by-id/*3Dconnexion*-event-*
 or *SpaceMouse*-event-* device) exists and is readable, its six axes add a velocity of up to
 `spacemouse_max_linear` m/s and `spacemouse_max_angular` rad/s, and its first button toggles
@@ -27,6 +33,7 @@ import glob
 import os
 import re
 import select
+import shutil
 import struct
 import sys
 import termios
@@ -37,6 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from skillgen_ros.core.geometry import Pose
+from skillgen_ros.core.teleop import SkillProgress, TeleopView, status_line
 from skillgen_ros.nodes.runtime import run_node
 
 # key -> (linear direction (3,), angular axis (3,)) in the world frame
@@ -125,6 +134,59 @@ def spacemouse_twist(axes: np.ndarray, dt: float, max_lin: float, max_ang: float
     return lin, ang
 
 
+# ---- the status line -------------------------------------------------------------------------
+class _StatusPrinter:
+    """Prints core/teleop.status_line at `hz` on a terminal (rewritten in place), or on a pipe a new
+    line whenever the key, the grasp or the next skill changes (so logs stay short)."""
+
+    def __init__(self, task: str, hz: float, control_hz: float, out=None):
+        from skillgen_ros.core.tasks import get_task
+
+        self.out = out or sys.stdout
+        self.enabled = hz > 0
+        self.task = get_task(task) if task else None
+        self.progress = SkillProgress(self.task) if self.task else None
+        self.every = max(1, int(round(control_hz / hz))) if hz > 0 else 0
+        self.tty = bool(getattr(self.out, "isatty", lambda: False)())
+        self.objects: dict | None = None
+        self.last_key = ""
+        self._width: float | None = None
+        self._grasping = False
+        self._command: float | None = None
+        self._n = 0
+        self._printed_key = None
+        self._shown: tuple | None = None
+
+    def gripper(self, width: float, grasping: bool, command: float) -> None:
+        self._width, self._grasping, self._command = width, grasping, command
+        if self.progress is not None:
+            self.progress.update(grasping)
+
+    def tick(self, ee) -> None:
+        if not self.enabled:
+            return
+        self._n += 1
+        view = TeleopView(None if ee is None else Pose(ee[:3], ee[3:]), self._width, self._grasping, self._command,
+                          None if self.progress is None else self.progress.index, self.objects, self.last_key)
+        if self.tty:
+            if self._n % self.every == 0:  # cut to the terminal's width: a wrapped line cannot be rewritten
+                cols = shutil.get_terminal_size((120, 24)).columns
+                self.out.write("\r" + status_line(view, self.task)[:max(20, cols - 1)] + "\x1b[K")
+                self.out.flush()
+            return
+        key = (self.last_key, self._grasping, view.next_skill, ee is not None)
+        if key != self._shown and (self._n % self.every == 0 or self.last_key != self._printed_key):
+            self._shown, self._printed_key = key, self.last_key
+            self.out.write(status_line(view, self.task) + "\n")
+            self.out.flush()
+
+    def finish(self) -> None:
+        """End the in-place line so what follows starts on a fresh one."""
+        if self.enabled and self.tty:
+            self.out.write("\n")
+            self.out.flush()
+
+
 # ---- the node --------------------------------------------------------------------------------
 def _make_node():
     from geometry_msgs.msg import PoseStamped
@@ -132,7 +194,7 @@ def _make_node():
     from rclpy.node import Node
     import rclpy
 
-    from skillgen_interfaces.msg import GripperState, OscTarget
+    from skillgen_interfaces.msg import GripperState, ObjectPoseArray, OscTarget
 
     class Teleop(Node):
         """Keyboard (and 3D mouse) -> osc_target at a fixed rate, relative to the measured EE."""
@@ -149,6 +211,10 @@ def _make_node():
                 "spacemouse_device": ("", "3D mouse evdev path; empty = autodetect under /dev/input/by-id"),
                 "spacemouse_max_linear": (0.15, "m/s at full 3D-mouse deflection"),
                 "spacemouse_max_angular": (0.8, "rad/s at full 3D-mouse deflection"),
+                "task": ("", "task being demonstrated: the status line shows the distance to its next object"),
+                "object_poses_topic": ("sim/ground_truth/object_poses",
+                                       "object poses for the status line (perception/object_poses on a real robot)"),
+                "status_hz": (5.0, "status line rate on the terminal; 0 = no status line"),
             }
             for name, (default, desc) in p.items():
                 self.declare_parameter(name, default, ParameterDescriptor(description=desc))
@@ -166,6 +232,12 @@ def _make_node():
             self._pub = self.create_publisher(OscTarget, "osc_target", 10)
             self.create_subscription(PoseStamped, "ee_pose", self._on_ee, 10)
             self.create_subscription(GripperState, "gripper_state", self._on_gripper, 10)
+            self._status = _StatusPrinter(str(g("task")), float(g("status_hz")), self._rate)
+            if self._status.enabled:
+                from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+                latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+                self.create_subscription(ObjectPoseArray, str(g("object_poses_topic")), self._on_objects, latched)
             self._OscTarget = OscTarget
             self._rclpy = rclpy
             self._tty_state = None
@@ -192,6 +264,14 @@ def _make_node():
         def _on_gripper(self, msg):
             with self._lock:
                 self._gripper_cmd = float(msg.command)
+                self._status.gripper(float(msg.width), bool(msg.grasping), float(msg.command))
+
+        def _on_objects(self, msg):
+            poses = {o.id: Pose(np.array([o.pose.position.x, o.pose.position.y, o.pose.position.z]),
+                                np.array([o.pose.orientation.x, o.pose.orientation.y, o.pose.orientation.z,
+                                          o.pose.orientation.w])) for o in msg.objects}
+            with self._lock:
+                self._status.objects = poses
 
         def _read_keys(self):
             try:
@@ -231,12 +311,15 @@ def _make_node():
                 self._target = Target(ee[:3], ee[3:], grip0 if grip0 is not None and grip0 > 0 else -1.0)
             t = self._target
             for k in keys:
+                self._status.last_key = k
                 if k in QUIT_KEYS:
+                    self._status.finish()
                     self.get_logger().info("teleop: quit")
                     self._restore_tty()
                     self._rclpy.try_shutdown()
                     return
                 if k == "h":
+                    self._status.finish()
                     print("teleop keys:" + HELP, file=sys.stderr, flush=True)
                 elif k == "]":
                     self._lin, self._ang = self._lin * 2, self._ang * 2
@@ -258,6 +341,8 @@ def _make_node():
              msg.pose.orientation.z, msg.pose.orientation.w) = (float(v) for v in t.quaternion)
             msg.gripper = float(t.gripper)
             self._pub.publish(msg)
+            with self._lock:
+                self._status.tick(ee)
 
         def _spacemouse(self, t: Target) -> Target:
             if self._sm_fd is None:

@@ -7,6 +7,7 @@
         actions            (T, 7)   normalized delta pose + gripper
         actions_abs        (T, 8)   absolute pose (xyz, xyzw) + gripper
         states, rewards, dones
+        next_obs/<key>     (T, ...) only in `skillgen dataset export --format robomimic-next-obs` copies
         labels/<key>       (T, ...) mp_step, skill_index, source_demo, initiation_target, augmented
         estimates/         (E, ...) perception's estimates as events: step, stamp, <id>_pose (optional)
     mask/<filter_key>      (M,) demo names, e.g. "successful", "source_0", a failure reason
@@ -212,6 +213,10 @@ def validate_dataset(path: str) -> DatasetSummary:
                 for k in g[grp]:
                     if g[grp][k].shape[0] != T:
                         raise bad(f"{name}/{grp}/{k} has {g[grp][k].shape[0]} rows, expected {T}")
+            if "next_obs" in g:  # robomimic's offline-RL layout (next_obs.py): one per obs key, same shapes
+                if set(g["next_obs"]) != set(g["obs"]) or any(g["next_obs"][k].shape != g["obs"][k].shape
+                                                              for k in g["obs"]):
+                    raise bad(f"{name}/next_obs does not mirror {name}/obs (keys and shapes)")
             if "estimates" in g:
                 _check_estimates(g["estimates"], T, bad, name)
             total += T

@@ -13,8 +13,9 @@ FAILED_FILE = "failed.hdf5"
 
 
 def make_env_args(task: str, variant: str, method: str, seed: int, config: GenerationConfig,
-                  object_ids=()) -> dict:
-    """robomimic's env_args: env_name/type/env_kwargs, plus what regenerates the run."""
+                  object_ids=(), source_demos=()) -> dict:
+    """robomimic's env_args: env_name/type/env_kwargs, plus what regenerates the run (with the
+    absolute paths of the source-demo bags it was generated from, `generation.source_demos`)."""
     return {
         "env_name": task, "type": "skillgen_ros",
         "env_kwargs": {"variant": variant, "control_freq": 20, "controller": "OSC_POSE",
@@ -30,6 +31,7 @@ def make_env_args(task: str, variant: str, method: str, seed: int, config: Gener
                        "profile": config.profile, "release_moves": config.release.unjam_max > 0
                        or config.release.follow > 0 or config.release.clear_max > 0,
                        "planner_extras": config.planner_extras, "check_collisions": config.check_collisions,
+                       "source_demos": [os.path.abspath(str(p)) for p in source_demos],
                        **({"mimicgen": spec_record(task)} if method == "mimicgen" else {})},
     }
 

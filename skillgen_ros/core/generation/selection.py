@@ -73,14 +73,21 @@ STRATEGIES: dict[str, Callable[..., SelectionStrategy]] = {
     "random_per_skill": RandomPerSkill,
     "nearest_neighbor": NearestNeighborObject,
 }
+# Other spellings users and the ReplaySkill action's comment use for the same strategies.
+ALIASES = {"nearest": "nearest_neighbor", "nearest_neighbour": "nearest_neighbor"}
+
+
+def strategy_help() -> str:
+    """The names `--selection` accepts, for help texts (from the registry, so they cannot drift)."""
+    return ", ".join(sorted(STRATEGIES)) + " (" + ", ".join(f"{a} = {n}" for a, n in sorted(ALIASES.items())) + ")"
 
 
 def make_strategy(name: str, **params) -> SelectionStrategy:
     """Strategy by registry name; an unknown name raises UNKNOWN_SELECTION listing the known ones."""
     try:
-        factory = STRATEGIES[name]
+        factory = STRATEGIES[ALIASES.get(name, name)]
     except KeyError:
-        raise InvalidInputError(f"unknown selection strategy {name!r}; known: {sorted(STRATEGIES)}",
+        raise InvalidInputError(f"unknown selection strategy {name!r}; known: {strategy_help()}",
                                 reason="UNKNOWN_SELECTION") from None
     try:
         return factory(**params)

@@ -22,7 +22,7 @@ from ..skills.segment import SourceDemo
 from .attempt import METHODS, AttemptResult, GenerationConfig, GenerationEnv, run_attempt
 from .profile import DEFAULT_PROFILE, get_profile
 from .release import ReleaseConfig
-from .selection import make_strategy
+from .selection import ALIASES as SELECTION_ALIASES, make_strategy
 
 
 @dataclass(frozen=True)
@@ -58,7 +58,8 @@ class RunRequest:
         if prof.name == "paper" and n != 1:
             raise InvalidInputError(f"the paper profile tries one initiation pose per skill; initiation_candidates={n} "
                                     "needs --profile skillgen_ros", reason="INVALID_PARAMETER")
-        return GenerationConfig(variant=self.variant, action_noise=self.action_noise, selection=self.selection,
+        return GenerationConfig(variant=self.variant, action_noise=self.action_noise,
+                                selection=SELECTION_ALIASES.get(self.selection, self.selection),
                                 augment=self.augment,
                                 augmentation=AugmentationConfig(self.augment_translation, self.augment_rotation_deg),
                                 max_steps=self.max_steps, initiation_candidates=n,
@@ -156,7 +157,8 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
     cfg = req.config()
     out = RunResult(req)
     t0 = time.perf_counter()
-    env_args = make_env_args(req.task, req.variant, req.method, req.seed, cfg, [o.id for o in task.objects])
+    env_args = make_env_args(req.task, req.variant, req.method, req.seed, cfg, [o.id for o in task.objects],
+                             [d.source for d in demos])
     clips = []
     with AttemptSink(req.output_dir, env_args, keep_timings=keep_timings) as sink:
         out.dataset_path, out.failed_path = sink.dataset_path, sink.failed_path

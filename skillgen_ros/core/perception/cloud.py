@@ -2,7 +2,15 @@
 
 Everything takes and returns plain (N, 3) float arrays in the world frame, so the same code runs on
 a PointCloud2 from a real camera, on a sim render, or on a synthetic test scene. open3d does the
-heavy lifting (plane RANSAC, DBSCAN, voxel grid); numpy does the cheap masking.
+voxel grid (and the ICP in pose.py). The plane RANSAC and DBSCAN are our own, for reasons:
+- RANSAC: open3d's `segment_plane` returns the plane with the most inliers, whatever its tilt, so
+  a box side or the back wall of a bin can win over the table; ours only considers planes within
+  `max_tilt_deg` of up, scores all candidate triples at once on a subsample and refits on the
+  whole cloud, seeded, so the same cloud gives the same plane on every machine.
+- DBSCAN: the same labelling as open3d's `cluster_dbscan` up to numbering (and border-point ties;
+  test_perception compares them), from scipy's KD-tree and connected components, about twice
+  as fast on our clouds and without open3d's console progress output.
+numpy does the cheap masking.
 """
 from __future__ import annotations
 

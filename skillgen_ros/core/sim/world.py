@@ -15,7 +15,7 @@ from pybullet_utils.bullet_client import BulletClient
 
 from ..errors import InvalidInputError
 from ..geometry import Pose
-from ..robot import (ARM_JOINTS, EE_LINK, FINGER_JOINTS, GRIPPER_MAX_WIDTH, HAND_LINK, Q_HOME,
+from ..robot import (ARM_JOINTS, CONTROL_HZ, EE_LINK, FINGER_JOINTS, GRIPPER_MAX_WIDTH, HAND_LINK, Q_HOME,
                      TABLE_CENTER_XY, TABLE_FULL_SIZE, TABLE_Z,
                      panda_urdf_path)
 from ..tasks import SceneDescription, SceneState, get_task, validate_seed
@@ -46,7 +46,7 @@ class _Trajectory:
 
 @dataclass
 class SimConfig:
-    control_hz: float = 20.0
+    control_hz: float = CONTROL_HZ
     physics_hz: float = 240.0
     osc: OscGains = field(default_factory=OscGains)
     joint: JointGains = field(default_factory=JointGains)

@@ -2,10 +2,10 @@
 
 Format (YAML or JSON, documented in docs/annotations.md)::
 
-    task: square
-    demo: demo_0
+    task: Square
+    demo: demo_00
     num_steps: 412
-    skills:  [{index: 0, object: nut, start_step: 80, end_step: 130}, ...]
+    skills:  [{index: 0, object: square_nut, start_step: 80, end_step: 130}, ...]
     motions: [{start_step: 0, end_step: 80, next_skill: 0, mode: transit}, ...]
 
 Spans are half-open [start_step, end_step) over the demo's control steps. Motions are derived
@@ -15,12 +15,14 @@ from the gaps between skills when a document omits them. `validate_annotation` r
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import asdict, dataclass, replace
 
 import yaml
 
 from ..errors import AnnotationError
+from ..robot import CONTROL_HZ
 from .protocols import TaskLike, known_object_ids
 
 
@@ -218,7 +220,7 @@ class Override:
 
 
 def parse_override(text: str) -> Override:
-    """'1.start=120' (step) or '1.end=4.25s' (seconds from the demo's first timestamp)."""
+    """'1.start=120' (step) or '1.end=4.25s' (seconds from the demo's first step)."""
     try:
         lhs, rhs = text.split("=", 1)
         idx, edge = lhs.strip().split(".", 1)
@@ -227,25 +229,50 @@ def parse_override(text: str) -> Override:
         if edge not in ("start", "end"):
             raise ValueError(edge)
         if rhs.endswith("s"):
-            return Override(int(idx), edge, time=float(rhs[:-1]))
+            t = float(rhs[:-1])
+            if not math.isfinite(t):
+                raise ValueError(rhs)
+            return Override(int(idx), edge, time=t)
         return Override(int(idx), edge, step=int(rhs))
     except ValueError as e:
         raise AnnotationError(f"override {text!r}: expected '<skill>.<start|end>=<step>' or '...=<seconds>s'",
                               reason="BAD_OVERRIDE") from e
 
 
+def step_times(num_steps: int, control_hz: float = CONTROL_HZ):
+    """The demo's time of each control step from its first: step k at k / control_hz (20 Hz).
+
+    Overrides in seconds and `skillgen annotate`'s summary use this clock, not the bag's receive
+    times (which drift from the control clock under load, and start wherever the recording did)."""
+    import numpy as np
+
+    return np.arange(int(num_steps)) / float(control_hz)
+
+
 def time_to_step(timestamps, t: float) -> int:
-    """First step whose time since the demo's start is >= t."""
+    """First step whose time since the demo's start is >= t; a time before the start or more than
+    one period after the last step is ANNOTATION_OUT_OF_RANGE (as a step past the end is), never clamped.
+    A time within the period after the last step is the demo's end (step num_steps, an end edge)."""
     import numpy as np
 
     ts = np.asarray(timestamps, float)
-    return int(np.searchsorted(ts - ts[0], t - 1e-9, side="left"))
+    rel = ts - ts[0]
+    period = float(np.median(np.diff(rel))) if len(rel) > 1 else 0.0
+    if not (0.0 <= t <= rel[-1] + period + 1e-9):
+        raise AnnotationError(f"time {t:g} s is outside the demo, which runs from 0 to {rel[-1] + period:.2f} s "
+                              f"({len(ts)} steps)", reason="ANNOTATION_OUT_OF_RANGE")
+    return int(np.searchsorted(rel, t - 1e-9, side="left"))
 
 
 def apply_overrides(ann: Annotation, overrides, timestamps=None, task: TaskLike | None = None) -> Annotation:
-    """Apply manual boundary overrides, re-derive motions and re-validate."""
+    """Apply manual boundary overrides, re-derive motions and re-validate. A step or time outside
+    the demo is ANNOTATION_OUT_OF_RANGE; a skill the task lacks ANNOTATION_UNKNOWN_SKILL."""
     skills = {s.index: s for s in ann.skills}
+    task_skills = {sk.index for sk in task.skills} if task is not None else None
     for o in overrides:
+        if task_skills is not None and o.skill not in task_skills:
+            raise AnnotationError(f"{_where(ann)}: override for skill {o.skill}, which task {task.name!r} does not "
+                                  f"have (skills {sorted(task_skills)})", reason="ANNOTATION_UNKNOWN_SKILL")
         if o.skill not in skills:
             raise AnnotationError(f"{_where(ann)}: override for skill {o.skill}, which is not annotated",
                                   reason="ANNOTATION_MISSING_SKILL")
@@ -254,7 +281,13 @@ def apply_overrides(ann: Annotation, overrides, timestamps=None, task: TaskLike 
         elif timestamps is None:
             raise AnnotationError(f"{_where(ann)}: time override needs the demo's timestamps", reason="BAD_OVERRIDE")
         else:
-            step = time_to_step(timestamps, float(o.time))
+            try:
+                step = time_to_step(timestamps, float(o.time))
+            except AnnotationError as e:
+                raise AnnotationError(f"{_where(ann)}: override {o.skill}.{o.edge}: {e.args[0]}", e.reason) from e
+        if not 0 <= step <= ann.num_steps:
+            raise AnnotationError(f"{_where(ann)}: override {o.skill}.{o.edge}={step} is outside the demo's "
+                                  f"steps [0, {ann.num_steps}]", reason="ANNOTATION_OUT_OF_RANGE")
         skills[o.skill] = replace(skills[o.skill], **{f"{o.edge}_step": int(step)})
     new = tuple(skills[i] for i in sorted(skills))
     modes = {sk.index: sk.mode for sk in task.skills} if task is not None else {m.next_skill: m.mode for m in ann.motions}

@@ -1,4 +1,8 @@
-"""Short MP4 clips of attempts (front camera) so a person can see what went wrong."""
+"""Short MP4 clips of attempts (front camera) so a person can see what went wrong.
+
+H.264 (libx264, yuv420p, +faststart) through the ffmpeg binary that imageio-ffmpeg bundles in its
+wheel: what Chrome and Firefox play (OpenCV's mp4v, MPEG-4 Part 2, they do not).
+"""
 from __future__ import annotations
 
 import os
@@ -21,25 +25,35 @@ def caption(frame: np.ndarray, text: str, ok: bool | None = None) -> np.ndarray:
 
 
 def write_mp4(path: str, frames: Sequence[np.ndarray], fps: float = 20.0) -> str:
-    """Encode RGB uint8 frames (all the same HxWx3) with OpenCV's mp4v codec."""
+    """Encode RGB uint8 frames (all the same HxWx3; odd sizes are padded to even) as H.264 MP4."""
+    import imageio_ffmpeg
+
     if len(frames) == 0:
         raise InvalidInputError(f"{path}: no frames to write")
     first = np.asarray(frames[0])
     if first.ndim != 3 or first.shape[2] != 3:
         raise InvalidInputError(f"{path}: frames must be HxWx3 RGB, got {first.shape}")
+    for i, fr in enumerate(frames):
+        if np.asarray(fr).shape != first.shape:
+            raise InvalidInputError(f"{path}: frame {i} is {np.asarray(fr).shape}, expected {first.shape}")
     h, w = first.shape[:2]
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (w, h))
-    if not writer.isOpened():
-        raise InvalidInputError(f"{path}: OpenCV cannot open an mp4v writer", reason="OUTPUT_NOT_WRITABLE")
+    H, W = h + h % 2, w + w % 2  # yuv420p needs even sides
     try:
-        for i, fr in enumerate(frames):
-            fr = np.asarray(fr)
-            if fr.shape != first.shape:
-                raise InvalidInputError(f"{path}: frame {i} is {fr.shape}, expected {first.shape}")
-            writer.write(cv2.cvtColor(fr.astype(np.uint8), cv2.COLOR_RGB2BGR))
-    finally:
-        writer.release()
+        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+        writer = imageio_ffmpeg.write_frames(
+            str(path), (W, H), fps=float(fps), codec="libx264", pix_fmt_in="rgb24", pix_fmt_out="yuv420p",
+            macro_block_size=1, ffmpeg_log_level="error",
+            output_params=["-movflags", "+faststart", "-preset", "veryfast", "-crf", "23"])
+        writer.send(None)
+        try:
+            for fr in frames:
+                img = np.zeros((H, W, 3), np.uint8)
+                img[:h, :w] = np.asarray(fr, np.uint8)
+                writer.send(np.ascontiguousarray(img).tobytes())
+        finally:
+            writer.close()
+    except (OSError, RuntimeError) as e:
+        raise InvalidInputError(f"{path}: cannot write the MP4: {e}", reason="OUTPUT_NOT_WRITABLE") from None
     return str(path)
 
 
@@ -51,6 +65,6 @@ def attempt_clip(path: str, clips: Sequence[tuple[str, bool, Sequence[np.ndarray
         for fr in frames:
             fr = np.asarray(fr, np.uint8)
             if size is not None:
-                fr = cv2.resize(fr, size, interpolation=cv2.INTER_NEAREST)
+                fr = cv2.resize(fr, size, interpolation=cv2.INTER_AREA)
             out.append(caption(fr, f"{label} {'OK' if ok else 'FAILED'}", ok))
     return write_mp4(path, out, fps)

@@ -146,3 +146,26 @@ def test_recorder_throttle_parameter_is_checked(start_node, tmp_path):
         assert rec.proc.wait(30) != 0
         out = rec.stop()
         assert "throttle" in out and "Traceback" not in out, out
+
+
+def test_layout_panels_exist_and_read_topics_the_session_bag_has():
+    import json
+
+    from skillgen_ros.graphs import load_graph
+
+    layout = json.loads((REPO / "docs" / "foxglove" / "skillgen.json").read_text())
+    panels, stack = [], [layout["layout"]]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, str):
+            panels.append(node)
+        else:
+            stack += [node["first"], node["second"]]
+    assert sorted(panels) == sorted(layout["configById"])
+    assert {p.split("!")[0] for p in panels} == {"3D", "Image", "Plot", "StateTransitions"}
+    rec = dict(next(n for n in load_graph("datagen") if n.exe == "recorder").parameters)
+    recorded = {"/" + t.strip() for t in rec["topics"].strip("[]").split(",")} | set(SCENE_TOPICS)
+    cfg = layout["configById"]
+    used = set(cfg["3D!scene"]["topics"]) | {cfg["Image!front"]["imageMode"]["imageTopic"]}
+    used |= {p["value"].split(".")[0] for k in ("Plot!ee_tracking", "StateTransitions!run_state") for p in cfg[k]["paths"]}
+    assert used <= recorded, used - recorded

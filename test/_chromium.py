@@ -27,6 +27,7 @@ class PageReport:
     console_errors: list
     videos: list
     screenshot: Path
+    values: list  # what each of `evaluate`'s expressions returned, in order
 
 
 class _Cdp:
@@ -62,7 +63,7 @@ def _errors(events: list) -> list:
     return out
 
 
-async def _inspect(port: int, url: str, shot: Path, polls: int) -> PageReport:
+async def _inspect(port: int, url: str, shot: Path, polls: int, evaluate: tuple[str, ...]) -> PageReport:
     import urllib.request
 
     targets = json.loads(urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10).read())
@@ -82,10 +83,11 @@ async def _inspect(port: int, url: str, shot: Path, polls: int) -> PageReport:
                 break
         data = (await cdp.call("Page.captureScreenshot", format="png", captureBeyondViewport=True))["data"]
         shot.write_bytes(base64.b64decode(data))
-        return PageReport(_errors(cdp.events), videos, shot)
+        values = [await cdp.evaluate(e) for e in evaluate]
+        return PageReport(_errors(cdp.events), videos, shot, values)
 
 
-def inspect_page(path: Path, screenshot: Path, polls: int = 300) -> PageReport:
+def inspect_page(path: Path, screenshot: Path, polls: int = 300, evaluate: tuple[str, ...] = ()) -> PageReport:
     """Open file `path` in headless Chromium; report console errors, <video> states, a screenshot."""
     profile = tempfile.mkdtemp(prefix="chromium_")
     proc = subprocess.Popen([CHROMIUM, "--headless=new", "--no-sandbox", "--disable-gpu", "--mute-audio",
@@ -101,7 +103,7 @@ def inspect_page(path: Path, screenshot: Path, polls: int = 300) -> PageReport:
                 break
         if port is None:
             raise RuntimeError(f"chromium exited ({proc.poll()}) without a DevTools port")
-        return asyncio.run(_inspect(port, Path(path).resolve().as_uri(), Path(screenshot), polls))
+        return asyncio.run(_inspect(port, Path(path).resolve().as_uri(), Path(screenshot), polls, tuple(evaluate)))
     finally:
         proc.terminate()
         try:

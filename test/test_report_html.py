@@ -93,8 +93,11 @@ def test_report_html_content_and_never_overwritten(run_dir):
                                               "Debian's chromium package; CI runs it)")
 def test_report_plays_in_headless_chromium(run_dir):
     out, videos = run_dir
-    report = inspect_page(out / "report.html", out / "report_screenshot.png")
+    shown = "document.getElementById('shown').textContent"
+    report = inspect_page(out / "report.html", out / "report_screenshot.png", evaluate=(
+        f"filterReason('PLAN_FAILED'); {shown}", f"filterReason('OK'); {shown}", f"filterReason(''); {shown}"))
     assert report.console_errors == []
+    assert report.values == ["1", "2", "4"]  # the reason filter, as a user's select would drive it
     assert len(report.videos) == 1 + len(videos.examples)
     for v in report.videos:
         assert v["error"] == 0 and v["readyState"] >= 2 and (v["width"], v["height"]) == (640, 480), v

@@ -123,7 +123,7 @@ class Recorder(Node):
         self.declare_parameter("scene", False, d(description="also write /tf, /tf_static, /robot_description and "
                                                               "/scene/object_markers for Foxglove (docs/foxglove.md)"))
         self.declare_parameter("scene_cameras", ["front", "wrist"], d(description="cameras whose pose frames /tf gets"))
-        self.declare_parameter("throttle", [""], d(description="'topic:seconds' entries: record at most one "
+        self.declare_parameter("throttle", [""], d(description="'topic=seconds' entries: record at most one "
                                                                "message per that many seconds on the topic"))
         self.declare_parameter("writable_roots", [""], d(description="extra directories a recorder/start output may "
                                                                      "lie under (the working and temp dirs always)"))
@@ -228,7 +228,6 @@ class Recorder(Node):
             self._writer = _WriterThread(writer, self.get_logger(), self._max_queue)
             self._writer.start()
             self._bag_path = path.resolve()
-            self._state = State.RECORDING
             for spec in self._specs.values():  # re-declare topics subscribed before a stop
                 self._writer.queue.put(spec)
             if self._scene:
@@ -236,8 +235,8 @@ class Recorder(Node):
                     self._writer.queue.put(TopicSpec(topic, type_name, ({
                         "history": "keep_last", "depth": 1, "reliability": "reliable",
                         "durability": "transient_local" if latched else "volatile"},)))
-        if self._scene:
-            self._start_scene()
+                self._start_scene()
+            self._state = State.RECORDING  # last: a message is only queued after its topic's spec
         self.get_logger().info(f"recording to {self._bag_path}")
         self._discover()
         return True, f"recording to {self._bag_path}"
@@ -372,16 +371,16 @@ class Recorder(Node):
 
 
 def _parse_throttle(entries: list[str]) -> dict[str, int]:
-    """'topic:seconds' -> {topic: period ns}; ParameterError for a malformed entry."""
+    """'topic=seconds' -> {topic: period ns}; ParameterError for a malformed entry."""
     out = {}
     for e in entries:
-        topic, _, sec = e.rpartition(":")
+        topic, _, sec = e.rpartition("=")
         try:
             period = float(sec)
         except ValueError:
             period = float("nan")
         if not topic or not (0.0 < period < 3600.0):
-            raise ParameterError(f"throttle entries are 'topic:seconds' with 0 < seconds < 3600, got {e!r}")
+            raise ParameterError(f"throttle entries are 'topic=seconds' with 0 < seconds < 3600, got {e!r}")
         out[topic] = int(period * 1e9)
     return out
 

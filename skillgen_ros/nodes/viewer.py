@@ -75,14 +75,20 @@ class Viewer(Node):
         self.get_logger().info(f"Foxglove live view on ws://{host}:{self.server.port}"
                                + ("" if host in (LOOPBACK, "localhost", "::1") else " (NOT loopback: reachable "
                                                                                    "from the network)"))
-        if self.get_parameter("scene").value:
-            for topic, (type_name, latched) in SCENE_TOPICS.items():
-                self._channel(topic, type_name, latched)
-            self._exclude |= set(SCENE_TOPICS)
-            self.feed = SceneFeed(self, self._on_scene)
-        group = MutuallyExclusiveCallbackGroup()
-        self.create_timer(float(self.get_parameter("discovery_period").value), self._discover, callback_group=group)
-        self.create_timer(float(self.get_parameter("latched_period").value), self._resend_latched, callback_group=group)
+        try:  # from here a failure must stop the server's thread too
+            if self.get_parameter("scene").value:
+                for topic, (type_name, latched) in SCENE_TOPICS.items():
+                    self._channel(topic, type_name, latched)
+                self._exclude |= set(SCENE_TOPICS)
+                self.feed = SceneFeed(self, self._on_scene)
+            group = MutuallyExclusiveCallbackGroup()
+            self.create_timer(float(self.get_parameter("discovery_period").value), self._discover,
+                              callback_group=group)
+            self.create_timer(float(self.get_parameter("latched_period").value), self._resend_latched,
+                              callback_group=group)
+        except BaseException:
+            self.server.stop()
+            raise
 
     def _channel(self, topic: str, type_name: str, latched: bool) -> foxglove.Channel:
         schema = foxglove.Schema(name=type_name, encoding="ros2msg", data=schema_text(type_name).encode())

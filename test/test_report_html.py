@@ -101,4 +101,5 @@ def test_report_plays_in_headless_chromium(run_dir):
     assert len(report.videos) == 1 + len(videos.examples)
     for v in report.videos:
         assert v["error"] == 0 and v["readyState"] >= 2 and (v["width"], v["height"]) == (640, 480), v
+        assert v["frames"] >= 1, v  # decoded frames (getVideoPlaybackQuality)
     assert report.screenshot.stat().st_size > 10_000 and report.screenshot.read_bytes()[:4] == b"\x89PNG"

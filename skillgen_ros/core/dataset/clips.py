@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 from ..generation.attempt import AttemptResult
-from .render import ClipSpec, render_episode
-from .video import attempt_clip, caption, write_mp4
+from .render import ClipSpec, EpisodeRenderer
+from .video import Mp4Writer, caption, write_mp4
 
 CLIP_DIR = "clips"
 ATTEMPTS_FPS = 10.0
@@ -31,18 +31,27 @@ def example_attempts(results: Sequence[AttemptResult]) -> dict[str, int]:
 
 def write_run_videos(out_dir: str, task: str, variant: str, results: Sequence[AttemptResult], first_n: int,
                      spec: ClipSpec = ClipSpec()) -> RunVideos:
-    """Render the first `first_n` attempts and one example per outcome; write attempts.mp4 and clips/."""
+    """Render the first `first_n` attempts and one example per outcome; write attempts.mp4 and clips/.
+    Each attempt is rendered once and streamed into its files (memory: one attempt's frames)."""
     if first_n <= 0 or not results:
         return RunVideos()
     examples = example_attempts(results)
-    wanted = [r for r in results if r.index in set(examples.values()) or r in results[:first_n]]
-    clips, frames_of = {}, {}
-    for r in wanted:
-        frames, fps = render_episode(task, variant, r.scene_seed, r.episode, spec)
-        label = f"attempt {r.index} {'OK' if r.success else r.reason.value}"
-        frames_of[r.index] = (f"attempt {r.index}" + ("" if r.success else f" ({r.reason.value})"), r.success, frames)
-        path = os.path.join(out_dir, CLIP_DIR, f"attempt_{r.index}.mp4")
-        clips[r.index] = write_mp4(path, [caption(f, label, r.success) for f in frames], fps)
-    firsts = [frames_of[r.index] for r in results[:first_n]]
-    attempts = attempt_clip(os.path.join(out_dir, "attempts.mp4"), firsts, fps=ATTEMPTS_FPS)
-    return RunVideos(attempts, clips, examples)
+    firsts = {r.index for r in results[:first_n]}
+    wanted = [r for r in results if r.index in set(examples.values()) | firsts]
+    clips = {}
+    renderer = EpisodeRenderer(spec)
+    attempts = Mp4Writer(os.path.join(out_dir, "attempts.mp4"), ATTEMPTS_FPS)
+    try:
+        for r in wanted:
+            frames, fps = renderer.render(task, variant, r.scene_seed, r.episode)
+            label = f"attempt {r.index} {'OK' if r.success else r.reason.value}"
+            captioned = [caption(f, label, r.success) for f in frames]
+            path = os.path.join(out_dir, CLIP_DIR, f"attempt_{r.index}.mp4")
+            clips[r.index] = write_mp4(path, captioned, fps)
+            if r.index in firsts:
+                for f in captioned:
+                    attempts.add(f)
+    finally:
+        renderer.close()
+        path = attempts.close() if attempts.frames else ""
+    return RunVideos(path, clips, examples)

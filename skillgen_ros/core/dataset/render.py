@@ -34,29 +34,41 @@ def frame_stride(steps: int, spec: ClipSpec = ClipSpec()) -> int:
     return max(2, math.ceil(max(steps, 1) / spec.max_frames))
 
 
-def render_episode(task: str, variant: str, scene_seed: int, episode: Episode,
-                   spec: ClipSpec = ClipSpec()) -> tuple[list[np.ndarray], float]:
-    """(RGB frames, fps) of one attempt from the front; an attempt that never moved shows its reset scene."""
-    from ..sim.world import SimWorld  # pybullet: only when a clip is made
+class EpisodeRenderer:
+    """One headless pybullet world that re-shows attempts (reset per attempt); close() when done."""
 
-    world = SimWorld()
-    try:
-        world.reset(task, variant, scene_seed)
-        cfg = cam.CameraConfig("video", spec.size[0], spec.size[1], fov_deg=spec.fov_deg)
-        T = cam.front_camera_pose()
-        rng = np.random.default_rng(0)
+    def __init__(self, spec: ClipSpec = ClipSpec()):
+        from ..sim.world import SimWorld  # pybullet: only when a clip is made
+
+        self.spec = spec
+        self.world = SimWorld()
+        self._cfg = cam.CameraConfig("video", spec.size[0], spec.size[1], fov_deg=spec.fov_deg)
+        self._view = cam.view_matrix(cam.front_camera_pose())
+        self._proj = cam.projection_matrix(self._cfg)
+
+    def _rgb(self) -> np.ndarray:
+        p = self.world.p
+        _, _, rgba, _, _ = p.getCameraImage(self._cfg.width, self._cfg.height, viewMatrix=self._view,
+                                            projectionMatrix=self._proj, renderer=p.ER_TINY_RENDERER,
+                                            flags=p.ER_NO_SEGMENTATION_MASK)
+        return np.asarray(rgba, np.uint8).reshape(self._cfg.height, self._cfg.width, 4)[..., :3].copy()
+
+    def render(self, task: str, variant: str, scene_seed: int, episode: Episode) -> tuple[list[np.ndarray], float]:
+        """(RGB frames, fps) of one attempt from the front; an attempt that never moved shows its reset scene."""
+        self.world.reset(task, variant, scene_seed)
         obs = episode.obs
         steps = len(episode.actions)
         if steps == 0 or "robot0_joint_pos" not in obs or obs["robot0_joint_pos"].shape[1] != 7:
-            return [cam.render(world.p, cfg, T, rng).rgb], 1.0
-        stride = frame_stride(steps, spec)
+            return [self._rgb()], 1.0
+        stride = frame_stride(steps, self.spec)
         frames = []
         for t in list(range(0, steps, stride)) + ([steps - 1] if (steps - 1) % stride else []):
             q = np.concatenate([obs["robot0_joint_pos"][t], obs["robot0_gripper_qpos"][t]])
             poses = {oid: Pose.from_array(obs[f"{oid}_pose"][t]) for oid in episode.object_ids
                      if f"{oid}_pose" in obs}
-            world.show_state(q, poses)
-            frames.append(cam.render(world.p, cfg, T, rng).rgb)
+            self.world.show_state(q, poses)
+            frames.append(self._rgb())
         return frames, CONTROL_HZ / stride
-    finally:
-        world.close()
+
+    def close(self) -> None:
+        self.world.close()

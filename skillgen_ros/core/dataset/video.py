@@ -24,36 +24,68 @@ def caption(frame: np.ndarray, text: str, ok: bool | None = None) -> np.ndarray:
     return img
 
 
+class Mp4Writer:
+    """Streamed H.264 MP4 (frames are sent as they come: a run's clips never sit in memory together).
+    All frames must be the first one's HxWx3; odd sides are padded to even (yuv420p)."""
+
+    def __init__(self, path: str, fps: float = 20.0):
+        self.path, self.fps = str(path), float(fps)
+        self._writer = None
+        self._shape: tuple | None = None
+        self.frames = 0
+
+    def _open(self, shape: tuple) -> None:
+        import imageio_ffmpeg
+
+        h, w = shape[:2]
+        self._pad = (h + h % 2, w + w % 2)
+        try:
+            os.makedirs(os.path.dirname(os.path.abspath(self.path)), exist_ok=True)
+            self._writer = imageio_ffmpeg.write_frames(
+                self.path, (self._pad[1], self._pad[0]), fps=self.fps, codec="libx264", pix_fmt_in="rgb24",
+                pix_fmt_out="yuv420p", macro_block_size=1, ffmpeg_log_level="error",
+                output_params=["-movflags", "+faststart", "-preset", "veryfast", "-crf", "23"])
+            self._writer.send(None)
+        except (OSError, RuntimeError) as e:
+            raise InvalidInputError(f"{self.path}: cannot write the MP4: {e}", reason="OUTPUT_NOT_WRITABLE") from None
+        self._shape = shape
+
+    def add(self, frame: np.ndarray) -> None:
+        fr = np.asarray(frame)
+        if self._shape is None:
+            if fr.ndim != 3 or fr.shape[2] != 3:
+                raise InvalidInputError(f"{self.path}: frames must be HxWx3 RGB, got {fr.shape}")
+            self._open(fr.shape)
+        elif fr.shape != self._shape:
+            raise InvalidInputError(f"{self.path}: frame {self.frames} is {fr.shape}, expected {self._shape}")
+        img = np.zeros(self._pad + (3,), np.uint8)
+        img[:fr.shape[0], :fr.shape[1]] = fr.astype(np.uint8)
+        self._writer.send(np.ascontiguousarray(img).tobytes())
+        self.frames += 1
+
+    def close(self) -> str:
+        if self._writer is None:
+            raise InvalidInputError(f"{self.path}: no frames to write")
+        self._writer.close()
+        self._writer = None
+        return self.path
+
+
 def write_mp4(path: str, frames: Sequence[np.ndarray], fps: float = 20.0) -> str:
     """Encode RGB uint8 frames (all the same HxWx3; odd sizes are padded to even) as H.264 MP4."""
-    import imageio_ffmpeg
-
     if len(frames) == 0:
         raise InvalidInputError(f"{path}: no frames to write")
     first = np.asarray(frames[0])
-    if first.ndim != 3 or first.shape[2] != 3:
-        raise InvalidInputError(f"{path}: frames must be HxWx3 RGB, got {first.shape}")
-    for i, fr in enumerate(frames):
+    for i, fr in enumerate(frames):  # check everything before a file exists
         if np.asarray(fr).shape != first.shape:
             raise InvalidInputError(f"{path}: frame {i} is {np.asarray(fr).shape}, expected {first.shape}")
-    h, w = first.shape[:2]
-    H, W = h + h % 2, w + w % 2  # yuv420p needs even sides
+    w = Mp4Writer(path, fps)
     try:
-        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-        writer = imageio_ffmpeg.write_frames(
-            str(path), (W, H), fps=float(fps), codec="libx264", pix_fmt_in="rgb24", pix_fmt_out="yuv420p",
-            macro_block_size=1, ffmpeg_log_level="error",
-            output_params=["-movflags", "+faststart", "-preset", "veryfast", "-crf", "23"])
-        writer.send(None)
-        try:
-            for fr in frames:
-                img = np.zeros((H, W, 3), np.uint8)
-                img[:h, :w] = np.asarray(fr, np.uint8)
-                writer.send(np.ascontiguousarray(img).tobytes())
-        finally:
-            writer.close()
-    except (OSError, RuntimeError) as e:
-        raise InvalidInputError(f"{path}: cannot write the MP4: {e}", reason="OUTPUT_NOT_WRITABLE") from None
+        for fr in frames:
+            w.add(fr)
+    finally:
+        if w.frames:
+            w.close()
     return str(path)
 
 

@@ -43,7 +43,8 @@ class RunRequest:
     output_dir: str = "out/run"
     source_demos: str = ""  # directory of source bags; "" = bags/<task>
     max_steps: int = 3000
-    video_attempts: int = 4  # attempts in attempts.mp4 (0: no videos; else also one clip per outcome)
+    video_attempts: int = 4  # attempts in attempts.mp4 (0: no videos; else also one clip per outcome); only
+    # with the report (run_generation's write_report), which links them
     # skillgen: initiation poses tried per skill; 0 = the profile's (paper 1, skillgen_ros 6)
     initiation_candidates: int = 0
     release: ReleaseConfig = ReleaseConfig()  # how the hand lets go before a planned motion (release.py)
@@ -178,12 +179,12 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
     bag = os.path.join(req.output_dir, "bag")
     if os.path.isdir(bag):  # datagen records the session there (Generate.record_bag)
         paths["bag"] = bag
-    videos = _videos(req, out.results)
-    if videos.attempts_mp4:
-        out.video_path = paths["video"] = videos.attempts_mp4
-    if write_report and out.results:
+    if write_report and out.results:  # videos too: the report is what shows them
         from ..dataset.report_html import write_report_html
 
+        videos = _videos(req, out.results)
+        if videos.attempts_mp4:
+            out.video_path = paths["video"] = videos.attempts_mp4
         summary = RunSummary.from_results(req.task, req.variant, req.method, out.results, req.augment,
                                           out.wall_seconds, paths, profile=cfg.profile)
         out.report_path = _write_report(req.output_dir, [summary])

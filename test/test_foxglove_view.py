@@ -12,10 +12,12 @@ import websockets
 from rosbags.typesys import Stores, get_typestore
 
 from conftest import wait_for
+from skillgen_ros.core.viz.description import resolve_package_uri
 from skillgen_ros.core.viz.messages import TF_TYPE, decode
 
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 MESSAGE_DATA = 0x01
+FETCH_ASSET_RESPONSE = 0x04
 
 
 def _port(view) -> int | None:
@@ -62,6 +64,31 @@ def test_view_serves_joint_states_and_tf(start_node):
     assert {t.child_frame_id for t in tf.transforms} >= {"panda_link1", "panda_link7"}
     assert "package://franka_panda/meshes/" in decode(got["/robot_description"], "std_msgs/msg/String").data
     assert driver.proc.poll() is None and view.proc.poll() is None
+
+
+async def _fetch(port: int, uris: list[str], budget: int = 4000) -> dict[str, tuple[int, bytes]]:
+    """fetchAsset each URI; uri -> (status, data) from the binary replies (opcode 0x04)."""
+    out = {}
+    async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS, max_size=1 << 26) as ws:
+        for k, uri in enumerate(uris):
+            await ws.send(json.dumps({"op": "fetchAsset", "uri": uri, "requestId": k}))
+        for _ in range(budget):
+            frame = await asyncio.wait_for(ws.recv(), 60)
+            if isinstance(frame, bytes) and frame[0] == FETCH_ASSET_RESPONSE:
+                rid, status, n = struct.unpack_from("<IBI", frame, 1)
+                out[uris[rid]] = (status, bytes(frame[10 + n:]) if status == 0 else frame[10:10 + n])
+                if len(out) == len(uris):
+                    break
+    return out
+
+
+def test_view_serves_the_robot_meshes_and_nothing_else(start_node):
+    view = start_node("skillgen", "view", "--port", "0", "--no-scene")
+    assert wait_for(lambda: _port(view) is not None, 60), view.output()
+    mesh = "package://franka_panda/meshes/visual/link1.obj"
+    got = asyncio.run(_fetch(_port(view), [mesh, "package://franka_panda/../../../../etc/passwd", "file:///etc/passwd"]))
+    assert got[mesh][0] == 0 and got[mesh][1] == resolve_package_uri(mesh).read_bytes()
+    assert got["file:///etc/passwd"][0] != 0 and got["package://franka_panda/../../../../etc/passwd"][0] != 0
 
 
 def test_view_rejects_a_bad_port_with_a_reason(start_node):

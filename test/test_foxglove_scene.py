@@ -148,12 +148,11 @@ def test_recorder_throttle_parameter_is_checked(start_node, tmp_path):
         assert "throttle" in out and "Traceback" not in out, out
 
 
-def test_layout_panels_exist_and_read_topics_the_session_bag_has():
+def _layout(name: str) -> tuple[dict, list[str], set[str]]:
+    """(configById, panel ids in the layout tree, topics the panels read)."""
     import json
 
-    from skillgen_ros.graphs import load_graph
-
-    layout = json.loads((REPO / "docs" / "foxglove" / "skillgen.json").read_text())
+    layout = json.loads((REPO / "docs" / "foxglove" / name).read_text())
     panels, stack = [], [layout["layout"]]
     while stack:
         node = stack.pop()
@@ -161,11 +160,28 @@ def test_layout_panels_exist_and_read_topics_the_session_bag_has():
             panels.append(node)
         else:
             stack += [node["first"], node["second"]]
-    assert sorted(panels) == sorted(layout["configById"])
+    used = set()
+    for pid, c in layout["configById"].items():
+        used |= set(c.get("topics", {})) if pid.startswith("3D!") else set()
+        used |= {c["imageMode"]["imageTopic"]} if pid.startswith("Image!") else set()
+        used |= {p["value"].split(".")[0] for p in c.get("paths", [])}
+        used |= {c["topicPath"].split(".")[0]} if "topicPath" in c else set()
+    return layout["configById"], panels, used
+
+
+def _graph_topics(graph: str) -> set[str]:
+    from skillgen_ros.graphs import load_graph
+
+    rec = dict(next(n for n in load_graph(graph) if n.exe == "recorder").parameters)
+    return {"/" + t.strip() for t in rec["topics"].strip("[]").split(",")} | set(SCENE_TOPICS)
+
+
+def test_layouts_panels_exist_and_read_topics_the_bags_and_the_graph_have():
+    cfg, panels, used = _layout("skillgen.json")
+    assert sorted(panels) == sorted(cfg)
     assert {p.split("!")[0] for p in panels} == {"3D", "Image", "Plot", "StateTransitions"}
-    rec = dict(next(n for n in load_graph("datagen") if n.exe == "recorder").parameters)
-    recorded = {"/" + t.strip() for t in rec["topics"].strip("[]").split(",")} | set(SCENE_TOPICS)
-    cfg = layout["configById"]
-    used = set(cfg["3D!scene"]["topics"]) | {cfg["Image!front"]["imageMode"]["imageTopic"]}
-    used |= {p["value"].split(".")[0] for k in ("Plot!ee_tracking", "StateTransitions!run_state") for p in cfg[k]["paths"]}
-    assert used <= recorded, used - recorded
+    assert used <= _graph_topics("datagen"), used - _graph_topics("datagen")
+    cfg, panels, used = _layout("teleop.json")  # live view of the teleop graph: the driver's cameras
+    assert sorted(panels) == sorted(cfg) and {"/camera/front/image", "/camera/wrist/image"} <= used
+    driver = {f"/camera/{c}/{k}" for c in ("front", "wrist") for k in ("image", "camera_info", "points")}
+    assert used <= _graph_topics("teleop") | driver, used - _graph_topics("teleop") - driver

@@ -185,3 +185,14 @@ def test_layouts_panels_exist_and_read_topics_the_bags_and_the_graph_have():
     assert sorted(panels) == sorted(cfg) and {"/camera/front/image", "/camera/wrist/image"} <= used
     driver = {f"/camera/{c}/{k}" for c in ("front", "wrist") for k in ("image", "camera_info", "points")}
     assert used <= _graph_topics("teleop") | driver, used - _graph_topics("teleop") - driver
+
+
+def test_standard_type_hash_agrees_with_rosidl_and_covers_tf2():
+    from rosbags.typesys import Stores, get_typestore
+
+    from skillgen_ros.core.bag.schemas import type_hash
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    assert type_hash("sensor_msgs/msg/JointState") == store.hash_rihs01("sensor_msgs/msg/JointState")  # from rosidl JSON
+    assert type_hash(TF_TYPE) == store.hash_rihs01(TF_TYPE) and type_hash(TF_TYPE).startswith("RIHS01_")
+    assert type_hash("nopkg/msg/X") == ""

@@ -237,6 +237,10 @@ def type_hash(type_name: str) -> str:
         for entry in json.loads(path.read_text()).get("type_hashes", []):
             if entry.get("type_name") == full:
                 return entry.get("hash_string", "")
+    if kind == "msg" and _find(pkg, "msg", name + ".msg") is None and standard_schema_text(full):
+        from rosbags.typesys import Stores  # a standard type we write by rosbags' definition (tf2_msgs)
+
+        return get_typestore(Stores.ROS2_JAZZY).hash_rihs01(full)  # agrees with rosidl's (JointState checked)
     return ""
 
 

@@ -196,3 +196,24 @@ def test_standard_type_hash_agrees_with_rosidl_and_covers_tf2():
     assert type_hash("sensor_msgs/msg/JointState") == store.hash_rihs01("sensor_msgs/msg/JointState")  # from rosidl JSON
     assert type_hash(TF_TYPE) == store.hash_rihs01(TF_TYPE) and type_hash(TF_TYPE).startswith("RIHS01_")
     assert type_hash("nopkg/msg/X") == ""
+
+
+def test_playing_a_whole_scene_bag_skips_tf_and_replays_the_rest(tmp_path, start_node, ros_node):
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import String
+
+    bag = tmp_path / "scene_and_note"
+    tf = SceneSynthesizer().on_joints(list(ARM_JOINTS), list(Q_HOME), 1)[-1]
+    with BagWriter(bag) as w:
+        w.add_topic(TopicSpec("/note", "std_msgs/msg/String"))
+        w.add_topic(TopicSpec(TF, TF_TYPE))
+        for i in range(5):
+            w.write(TF, tf.data, 1_000 + i)
+            w.write("/note", serialize_message(String(data=f"n{i}")), 2_000 + i)
+    notes = []
+    ros_node.create_subscription(String, "/note", lambda m: notes.append(m.data), 50)
+    play = start_node("player", "--ros-args", "--params-file", str(REPO / "params" / "player.yaml"),
+                      "-p", f"bag:={bag}", "-p", "wait_for_subscribers:=15.0")
+    assert play.proc.wait(60) == 0, play.output()
+    assert wait_for(lambda: len(notes) == 5, 15) and notes == [f"n{i}" for i in range(5)]
+    assert "not replaying (type not installed): /tf (tf2_msgs/msg/TFMessage)" in play.output()

@@ -137,6 +137,10 @@ def test_recorder_writes_the_scene_and_throttles_a_topic(tmp_path, start_node, r
     assert {TF, TF_STATIC, ROBOT_DESCRIPTION, OBJECT_MARKERS, "/joint_states"} <= set(got)
     assert unconnected(set(panda_tf().links) | {"square_nut"}, tf_parents(got)) == []
     assert len(got["/joint_states"]) == 1 and len(got[TF]) >= 3  # throttled to one per 1000 s; TF from every one
+    topics = BagReader(bag).topics  # latched in the metadata, as a player or Foxglove reads it
+    for name, (_, latched) in SCENE_TOPICS.items():
+        assert {q["durability"] for q in topics[name].qos_profiles} == {"transient_local" if latched else "volatile"}
+    assert topics[TF].type_hash.startswith("RIHS01_")
 
 
 def test_recorder_throttle_parameter_is_checked(start_node, tmp_path):

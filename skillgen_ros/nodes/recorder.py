@@ -235,8 +235,9 @@ class Recorder(Node):
                     self._writer.queue.put(TopicSpec(topic, type_name, ({
                         "history": "keep_last", "depth": 1, "reliability": "reliable",
                         "durability": "transient_local" if latched else "volatile"},)))
+            self._state = State.RECORDING  # after the specs: a message is only queued after its topic's spec
+            if self._scene:  # after RECORDING: a latched input delivered as the subscription is made counts
                 self._start_scene()
-            self._state = State.RECORDING  # last: a message is only queued after its topic's spec
         self.get_logger().info(f"recording to {self._bag_path}")
         self._discover()
         return True, f"recording to {self._bag_path}"

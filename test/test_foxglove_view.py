@@ -7,6 +7,7 @@ import json
 import re
 import struct
 
+import psutil
 import pytest
 import websockets
 from rosbags.typesys import Stores, get_typestore
@@ -64,6 +65,18 @@ def test_view_serves_joint_states_and_tf(start_node):
     assert {t.child_frame_id for t in tf.transforms} >= {"panda_link1", "panda_link7"}
     assert "package://franka_panda/meshes/" in decode(got["/robot_description"], "std_msgs/msg/String").data
     assert driver.proc.poll() is None and view.proc.poll() is None
+    listening = {c.laddr for c in psutil.Process(view.proc.pid).net_connections(kind="inet")
+                 if c.status == psutil.CONN_LISTEN}
+    assert listening == {("127.0.0.1", _port(view))}, listening  # loopback only (exec kept the pid)
+
+
+def test_view_binds_another_address_only_when_asked_and_says_so(start_node):
+    view = start_node("skillgen", "view", "--port", "0", "--host", "0.0.0.0", "--no-scene")
+    assert wait_for(lambda: "NOT loopback" in view.output(), 60), view.output()
+    port = int(re.search(r"ws://0\.0\.0\.0:(\d+)", view.output()).group(1))
+    listening = {c.laddr for c in psutil.Process(view.proc.pid).net_connections(kind="inet")
+                 if c.status == psutil.CONN_LISTEN}
+    assert ("0.0.0.0", port) in listening, listening
 
 
 async def _fetch(port: int, uris: list[str], budget: int = 4000) -> dict[str, tuple[int, bytes]]:

@@ -10,8 +10,8 @@ record the session through the recorder's services.
 Parameters (params/datagen.yaml): demos_dir, output_root, collision_source, action_noise,
 observation_source (ground_truth: the sim's true object poses in obs/<id>_pose; estimate: a real robot), profile
 (the algorithm profile, core/generation/profile.py: paper or skillgen_ros; a goal's `profile` overrides it),
-release.* (how the hand lets go before a planned motion: core/generation/release.py), driver_node, and the per-call timeouts
-(timeout_reset, timeout_perception, timeout_plan, timeout_execute, timeout_skill, timeout_state).
+release.* (how the hand lets go before a planned motion: core/generation/release.py), driver_node, and the
+per-call timeouts (timeout_reset, timeout_perception, timeout_plan, timeout_execute, timeout_skill, timeout_state).
 """
 from __future__ import annotations
 

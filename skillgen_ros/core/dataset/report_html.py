@@ -42,9 +42,9 @@ _CSS = """body{font-family:system-ui,sans-serif;margin:1.5em;max-width:1100px;co
 table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}
 td.l,th.l{text-align:left}.ok{color:#176d17}.fail{color:#b01c1c}video{width:480px;max-width:100%;background:#000}
 .clips{display:flex;flex-wrap:wrap;gap:1em}.clips figure{margin:0}.big{font-size:1.6em;font-weight:600}"""
-_JS = """function filterReason(v){for(const tr of document.querySelectorAll('#attempts tbody tr')){
-tr.style.display=(v===''||tr.dataset.reason===v)?'':'none';}
-document.getElementById('shown').textContent=document.querySelectorAll('#attempts tbody tr:not([style*="none"])').length;}"""
+_JS = """function filterReason(v){let n=0;for(const tr of document.querySelectorAll('#attempts tbody tr')){
+const show=(v===''||tr.dataset.reason===v);tr.style.display=show?'':'none';n+=show?1:0;}
+document.getElementById('shown').textContent=n;}"""
 
 
 def _e(x) -> str:
@@ -95,8 +95,9 @@ def _attempts(rows: Sequence[AttemptRow], videos: RunVideos, out_dir: str) -> st
     for r in rows:
         clip = videos.clips.get(r.index)
         link = f'<a href="{_e(_rel(clip, out_dir))}">clip</a>' if clip else ""
-        body.append(f'<tr data-reason="{_e(r.reason)}"><td>{r.index}</td><td class="l">'
-                    f'{_e(", ".join(map(str, r.source_demos)) or "-")}</td><td class="l {"ok" if r.success else "fail"}">'
+        demos = ", ".join(map(str, r.source_demos)) or "-"
+        body.append(f'<tr data-reason="{_e(r.reason)}"><td>{r.index}</td><td class="l">{_e(demos)}</td>'
+                    f'<td class="l {"ok" if r.success else "fail"}">'
                     f'{_e(r.reason)}</td><td>{r.seconds:.2f}</td><td class="l">{_e(r.message[:160])}</td>'
                     f"<td>{link}</td></tr>")
     return (f'<h2>Attempts</h2><label>reason <select id="reason" onchange="filterReason(this.value)">'

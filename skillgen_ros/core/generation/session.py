@@ -188,8 +188,8 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
         summary = RunSummary.from_results(req.task, req.variant, req.method, out.results, req.augment,
                                           out.wall_seconds, paths, profile=cfg.profile)
         out.report_path = _write_report(req.output_dir, [summary])
-        plots = {k: os.path.join(req.output_dir, f) for k, f in (("success", "success_rate.png"),
-                                                                  ("failures", "failures.png"), ("timing", "timing.png"))}
+        plots = {k: os.path.join(req.output_dir, f) for k, f in
+                 (("success", "success_rate.png"), ("failures", "failures.png"), ("timing", "timing.png"))}
         out.html_path = write_report_html(req.output_dir, summary, out.results, videos, plots)
     return out
 

@@ -20,7 +20,9 @@ from skillgen_ros.core.viz.scene import ObjectPoseValue, SceneSynthesizer, VizMe
 
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-TRUTH_TOPIC, ESTIMATE_TOPIC, PATH_TOPIC = "sim/ground_truth/object_poses", "perception/object_poses", "planner/path_markers"
+TRUTH_TOPIC = "sim/ground_truth/object_poses"
+ESTIMATE_TOPIC = "perception/object_poses"
+PATH_TOPIC = "planner/path_markers"
 
 
 def _ns(stamp) -> int:

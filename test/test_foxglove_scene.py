@@ -81,7 +81,7 @@ def test_synthesized_scene_bag_decodes_with_third_party_readers(tmp_path):
     msgs += synth.on_objects(_objects(0.01), 3_000)  # same objects: no second model message
     msgs += synth.on_objects(_objects(), 3_500, estimate=True)
     msgs += synth.on_camera("front", (1.0, 0.0, 0.5), (0, 0, 0, 1), 4_000)
-    msgs += synth.on_path([(0.4, 0.0, 0.2), (0.5, 0.1, 0.1)], 5_000)
+    msgs += synth.on_path([((0.4, 0.0, 0.2), (1, 0, 0, 0)), ((0.5, 0.1, 0.1), (0, 0, 0, 1))], 5_000)
     assert [m.topic for m in msgs].count(ROBOT_DESCRIPTION) == 1 and [m.topic for m in msgs].count(OBJECT_MARKERS) == 1
     bag = tmp_path / "scene"
     with BagWriter(bag) as w:

@@ -71,7 +71,8 @@ class SceneFeed:
     def _on_path(self, m: MarkerArray) -> None:
         if not self._active():
             return
-        ends = [(mk.points[-1].x, mk.points[-1].y, mk.points[-1].z) for mk in m.markers
-                if mk.ns == "planner_path" and mk.points]
-        stamp = next((_ns(mk.header.stamp) for mk in m.markers if mk.ns == "planner_path"), 0)
-        self._out(self.synth.on_path(ends, stamp))
+        goals = [((mk.pose.position.x, mk.pose.position.y, mk.pose.position.z),
+                  (mk.pose.orientation.x, mk.pose.orientation.y, mk.pose.orientation.z, mk.pose.orientation.w))
+                 for mk in sorted(m.markers, key=lambda mk: mk.id) if mk.ns == "planner_goal"]
+        stamp = next((_ns(mk.header.stamp) for mk in m.markers if mk.ns == "planner_goal"), 0)
+        self._out(self.synth.on_path(goals, stamp))

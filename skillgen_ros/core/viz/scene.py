@@ -7,8 +7,8 @@ them live. Frames (docs/foxglove.md):
 - world -> panda_link0 and the URDF's fixed joints on /tf_static; its moving joints on /tf;
 - world -> <object id> (the sim's true pose) and world -> <object id>_estimate (perception's);
 - world -> camera_<name>_optical (the frame of the camera's images);
-- world -> planner_goal_<k>: the end of the k-th segment of the last planned path (position only:
-  path markers carry points, not orientations).
+- world -> planner_goal_<k>: the EE pose at the end of the k-th segment of the last planned path
+  (the planner's `planner_goal` markers: retreat, transit/transfer, approach).
 Not thread-safe: one thread feeds it.
 """
 from __future__ import annotations
@@ -94,10 +94,10 @@ class SceneSynthesizer:
         return self._static(stamp_ns) + [VizMessage(TF, encode_tf(
             [Transform(WORLD, camera_frame(name), tuple(position), tuple(quaternion), stamp_ns)]), stamp_ns)]
 
-    def on_path(self, segment_ends: Sequence[tuple[float, float, float]], stamp_ns: int) -> list[VizMessage]:
-        """The planner's last path: one goal frame per segment end (retreat, transit/transfer, approach)."""
-        if not segment_ends:
+    def on_path(self, goals: Sequence[tuple[Sequence[float], Sequence[float]]], stamp_ns: int) -> list[VizMessage]:
+        """The planner's last path: one frame per segment goal, (position, quaternion xyzw) each."""
+        if not goals:
             return []
         return self._static(stamp_ns) + [VizMessage(TF, encode_tf(
-            [Transform(WORLD, f"planner_goal_{k}", tuple(p), (0.0, 0.0, 0.0, 1.0), stamp_ns)
-             for k, p in enumerate(segment_ends)]), stamp_ns)]
+            [Transform(WORLD, f"planner_goal_{k}", tuple(p), tuple(q), stamp_ns)
+             for k, (p, q) in enumerate(goals)]), stamp_ns)]

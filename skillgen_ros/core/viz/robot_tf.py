@@ -14,7 +14,6 @@ from typing import Mapping, Sequence
 
 import numpy as np
 import pinocchio as pin
-from scipy.spatial.transform import Rotation
 
 from ..errors import InvalidInputError
 from ..robot import BASE_LINK, panda_urdf_path
@@ -29,11 +28,6 @@ class UrdfJoint:
     kind: str  # revolute, prismatic, fixed, ...
     parent: str
     child: str
-
-
-def matrix_transform(parent: str, child: str, T: np.ndarray, stamp_ns: int) -> Transform:
-    q = Rotation.from_matrix(T[:3, :3]).as_quat()
-    return Transform(parent, child, tuple(float(x) for x in T[:3, 3]), tuple(float(x) for x in q), int(stamp_ns))
 
 
 class PandaTf:
@@ -54,8 +48,7 @@ class PandaTf:
     def moving(self) -> tuple[UrdfJoint, ...]:
         return tuple(j for j in self.joints if j.kind != "fixed")
 
-    def link_poses(self, positions: Mapping[str, float]) -> dict[str, np.ndarray]:
-        """World pose (4x4) of every link; joints missing from `positions` stay at 0."""
+    def _placements(self, positions: Mapping[str, float]) -> dict[str, "pin.SE3"]:
         q = pin.neutral(self.model)
         for name, value in positions.items():
             if name in self.joint_names:
@@ -65,17 +58,28 @@ class PandaTf:
                 q[self.model.joints[self.model.getJointId(name)].idx_q] = v
         pin.forwardKinematics(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
-        return {n: self.data.oMf[f].homogeneous.copy() for n, f in self._frame.items()}
+        return {n: self.data.oMf[f] for n, f in self._frame.items()}
+
+    def link_poses(self, positions: Mapping[str, float]) -> dict[str, np.ndarray]:
+        """World pose (4x4) of every link; joints missing from `positions` stay at 0."""
+        return {n: M.homogeneous.copy() for n, M in self._placements(positions).items()}
 
     def transforms(self, positions: Mapping[str, float], stamp_ns: int, fixed: bool = False) -> list[Transform]:
-        """parent -> child per URDF joint: the moving joints, or (fixed=True) world -> base and the fixed ones."""
-        poses = self.link_poses(positions)
-        out = [matrix_transform(WORLD, BASE_LINK, poses[BASE_LINK], stamp_ns)] if fixed else []
+        """parent -> child per URDF joint: the moving joints, or (fixed=True) world -> base and the fixed ones.
+        pinocchio's SE3 and quaternion all the way (scipy's from_matrix cost 10x the rest per message)."""
+        poses = self._placements(positions)
+        out = [_se3_transform(WORLD, BASE_LINK, poses[BASE_LINK], stamp_ns)] if fixed else []
         for j in self.joints:
             if (j.kind == "fixed") == fixed:
-                out.append(matrix_transform(j.parent, j.child, np.linalg.inv(poses[j.parent]) @ poses[j.child],
-                                            stamp_ns))
+                out.append(_se3_transform(j.parent, j.child, poses[j.parent].actInv(poses[j.child]), stamp_ns))
         return out
+
+
+def _se3_transform(parent: str, child: str, M, stamp_ns: int) -> Transform:
+    q = pin.Quaternion(M.rotation).coeffs()  # x, y, z, w
+    t = M.translation
+    return Transform(parent, child, (float(t[0]), float(t[1]), float(t[2])),
+                     (float(q[0]), float(q[1]), float(q[2]), float(q[3])), int(stamp_ns))
 
 
 @functools.lru_cache(maxsize=1)

@@ -16,8 +16,9 @@ stamp_ok() { [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" = "$2" ]; }
 stamp_set() { mkdir -p "$STAMPS"; echo "$2" > "$STAMPS/$1"; }
 
 # 1. Debian packages: libusb for open3d, a toolchain and Python headers for the interface build,
-#    venv support (the teleop terminal test drives a pseudo-terminal: no tmux).
-APT_PKGS=(libusb-1.0-0 cmake g++ make python3-dev python3-venv git)
+#    venv support (the teleop terminal test drives a pseudo-terminal: no tmux), chromium for the
+#    report.html browser test.
+APT_PKGS=(libusb-1.0-0 cmake g++ make python3-dev python3-venv git chromium)
 missing=()
 for p in "${APT_PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

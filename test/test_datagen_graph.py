@@ -11,11 +11,14 @@ import h5py
 import numpy as np
 import pytest
 
+from _foxglove_checks import decode_all, tf_parents, unconnected
 from conftest import REPO, NodeProcess, client_node, next_domain_id, wait_for
 from skillgen_ros.answered import first_answer
 from skillgen_ros.client import SkillGenClient
 from skillgen_ros.core.dataset.hdf5 import validate_dataset
 from skillgen_ros.core.generation.outcome import FailureReason
+from skillgen_ros.core.viz.robot_tf import panda_tf
+from skillgen_ros.graphs import load_graph
 
 # As graphs.yaml's datagen graph: sim_driver and skill_replay composed in one `container` process
 # (node-targeted -p), the driver rendering frames on demand (camera_hz 0), with graphs.yaml's depth noise,
@@ -29,7 +32,8 @@ NODES = {
     "perception": [],
     "planner": ["-p", "velocity_scale:=0.7", "-p", "dt:=0.01"],  # graphs.yaml's: the in-process env's timing
     "datagen": ["-p", "timeout_perception:=8.0", "-p", "timeout_plan:=8.0"],
-    "recorder": ["-p", "autostart:=false", "-p", "topics:=[joint_states, osc_target, camera/front/image]"],
+    "recorder": [a for k, v in next(n for n in load_graph("datagen") if n.exe == "recorder").parameters
+                 for a in ("-p", f"{k}:={v}")],  # graphs.yaml's: the scene for Foxglove, the cloud at 1 Hz
 }
 
 
@@ -116,7 +120,9 @@ def test_seeded_attempts_produce_a_valid_robomimic_dataset(graph, tmp_path):
     with AnyReader([Path(res.bag_path)]) as r:
         n = sum(1 for _ in r.messages(connections=[c for c in r.connections if c.topic == "/osc_target"]))
     assert 0 < n < 450, n  # one attempt's skill steps, not three
-    assert (out / "attempts.mp4").stat().st_size > 0
+    _check_session_bag(Path(res.bag_path))
+    assert (out / "attempts.mp4").stat().st_size > 0 and (out / "report.html").exists()
+    assert 'href="bag"' in (out / "report.html").read_text() and list((out / "clips").glob("attempt_*.mp4"))
     assert _driver_camera_hz(dom) == 0.0, "datagen must put the driver's camera rate back after filming"
     assert res.attempts == 3 and res.successes >= 1, [(f.reason, f.count) for f in res.failures]
     summary = validate_dataset(res.dataset_path)
@@ -135,6 +141,21 @@ def test_seeded_attempts_produce_a_valid_robomimic_dataset(graph, tmp_path):
         assert demo["actions"].shape == (n, 7) and demo["labels/mp_step"][:].any() and not demo["labels/mp_step"][:].all()
         assert "successful" in f["mask"]
     assert Path(res.report_path).exists()
+
+
+def _check_session_bag(bag: Path) -> None:
+    """What Foxglove's 3D panel needs, decoded by third-party readers: every link, object, camera
+    and planner goal frame connects to world; the robot model, object models, run state and a few clouds."""
+    got = decode_all(bag)
+    for topic in ("/tf", "/tf_static", "/robot_description", "/scene/object_markers", "/planner/path_markers",
+                  "/camera/front/points", "/run/stage", "/run/skill", "/run/attempt"):
+        assert got.get(topic), (topic, sorted(got))
+    parents = tf_parents(got)
+    frames = set(panda_tf().links) | {"square_nut", "square_peg", "square_nut_estimate", "camera_front_optical",
+                                      "planner_goal_0"}
+    assert frames <= set(parents) and unconnected(set(parents), parents) == [], sorted(parents)
+    assert {m.header.frame_id for m in got["/scene/object_markers"][-1].markers[1:]} == {"square_nut", "square_peg"}
+    assert {m.data for m in got["/run/stage"]} >= {"motion", "skill"}
 
 
 def test_skill_replay_loads_demos_ahead_and_says_why_not(graph, tmp_path):

@@ -92,6 +92,13 @@ def test_codes_markers_and_still_serving(client):
     assert {t.phase for t in r.timings} >= {"ik", "retreat", "transit", "approach", "total"}
     assert wait_for(lambda: markers, 5.0)
     assert any(m.points for m in markers[-1].markers)
+    strips = {m.id: m for m in markers[-1].markers if m.ns == "planner_path"}
+    goals = {m.id: m for m in markers[-1].markers if m.ns == "planner_goal"}
+    assert goals and set(goals) == set(strips)  # one goal pose per phase, at the end of its strip
+    for i, g in goals.items():
+        end, q = strips[i].points[-1], g.pose.orientation
+        assert abs(g.pose.position.x - end.x) + abs(g.pose.position.y - end.y) + abs(g.pose.position.z - end.z) < 1e-9
+        assert abs(q.x ** 2 + q.y ** 2 + q.z ** 2 + q.w ** 2 - 1.0) < 1e-9
     # point-cloud source with no cloud received: an empty cloud, i.e. no obstacles
     s, _, r = code(_request((0.5, 0.0, 0.12), collision_source=PlanToPose.Request.SOURCE_POINT_CLOUD))
     assert s == PlanToPose.Response.SUCCESS, r.message

@@ -97,10 +97,11 @@ def _record(ns) -> int:
 
 
 def _play(ns) -> int:
-    from skillgen_ros.core.bag.reader import BagReader, check_installed
+    from skillgen_ros.core.bag.reader import BagReader, check_installed, playable_topics
 
     reader = BagReader(ns.bag)  # fail fast, with a reason, before starting ROS
-    check_installed(reader, ns.topics or None)
+    if ns.topics or not playable_topics(reader)[0]:  # the whole bag skips what is not installed
+        check_installed(reader, ns.topics or None)
     params: list[tuple[str, object]] = [("bag", str(Path(ns.bag).resolve())), ("rate", float(ns.rate)),
                                         ("start_offset", float(ns.start_offset)), ("loop", ns.loop),
                                         ("clock", ns.clock), ("exit_when_done", not ns.stay)]

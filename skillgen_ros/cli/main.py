@@ -25,6 +25,7 @@ DELEGATED = {
     "dataset": ("skillgen_ros.cli.dataset", "validate or merge generated datasets (shards)"),
     "deploy": ("skillgen_ros.cli.deploy", "evaluate a Hybrid Skill Policy checkpoint (rollouts on held-out seeds)"),
     "train": ("skillgen_ros.cli.train", "learn a Hybrid Skill Policy (π, T, I) from a generated dataset"),
+    "view": ("skillgen_ros.cli.view", "serve the running graph to Foxglove (ws://127.0.0.1:8765)"),
 }
 
 

@@ -10,10 +10,9 @@ record the session through the recorder's services.
 Parameters (params/datagen.yaml): demos_dir, output_root, collision_source, action_noise,
 observation_source (ground_truth: the sim's true object poses in obs/<id>_pose; estimate: a real robot), profile
 (the algorithm profile, core/generation/profile.py: paper or skillgen_ros; a goal's `profile` overrides it),
-release.* (how the hand lets go before a planned motion: core/generation/release.py), driver_node and
-video_camera_hz (the driver's camera rate while an attempt is filmed), and the per-call timeouts
-(timeout_reset, timeout_perception, timeout_plan, timeout_execute, timeout_skill, timeout_state), and
-timeout_recover (before an attempt, how long a server that has gone is waited for: a node restarting).
+release.* (how the hand lets go before a planned motion: core/generation/release.py), driver_node, the
+per-call timeouts (timeout_reset, timeout_perception, timeout_plan, timeout_execute, timeout_skill, timeout_state),
+and timeout_recover (before an attempt, how long a server that has gone is waited for: a node restarting).
 """
 from __future__ import annotations
 
@@ -63,7 +62,6 @@ class DatagenNode(Node):
         for k, v in _RELEASE_PARAMS.items():
             self.declare_parameter(f"release.{k}", v)
         self.declare_parameter("driver_node", "sim_driver")
-        self.declare_parameter("video_camera_hz", 10.0)
         for k, v in TIMEOUTS.items():
             self.declare_parameter(f"timeout_{k}", v)
         src = str(self.get_parameter("collision_source").value)
@@ -82,7 +80,6 @@ class DatagenNode(Node):
             timeouts = {k: V.finite(f"timeout_{k}", self.get_parameter(f"timeout_{k}").value, 0.0, 86_400.0,
                                     lo_open=True) for k in TIMEOUTS}
             V.finite("action_noise", self.get_parameter("action_noise").value, 0.0, 1.0)
-            V.finite("video_camera_hz", self.get_parameter("video_camera_hz").value, 0.0, 1000.0, lo_open=True)
         except InvalidInputError as e:
             raise ParameterError(str(e.args[0])) from None
         self._writable = [str(self.get_parameter("output_root").value),
@@ -91,7 +88,6 @@ class DatagenNode(Node):
                                collision_source=PlanToPose.Request.SOURCE_POINT_CLOUD if src == "point_cloud"
                                else PlanToPose.Request.SOURCE_SCENE,
                                driver_node=str(self.get_parameter("driver_node").value),
-                               video_camera_hz=float(self.get_parameter("video_camera_hz").value),
                                observation_source=self._observation_source)
         self._busy = threading.Lock()
         cb = ReentrantCallbackGroup()
@@ -209,7 +205,8 @@ class DatagenNode(Node):
 
         window = (int(g.record_first), int(g.record_first) + int(g.record_count)) if g.record_count else None
 
-        def before_attempt(k: int) -> None:  # record only the chosen range of attempts
+        def before_attempt(k: int) -> None:  # say which attempt runs; record only the chosen range of attempts
+            self.env.state.attempt(req.first_index + k)
             if bag and window:
                 self._recorder_call(self.rec_resume if window[0] <= k < window[1] else self.rec_pause)
 

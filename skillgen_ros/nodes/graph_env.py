@@ -6,7 +6,8 @@ reset -> `reset_scene`, estimate_poses -> `estimate_poses`, plan_and_execute -> 
 action, task_success -> `task_success`. Before estimating poses in a state the robot has moved to,
 it asks the driver for fresh camera frames (`capture_cameras`) and has perception use a cloud no
 older than them, as SimGenerationEnv renders at that moment; a reset's own frames serve the first
-estimate. Filming an attempt for the MP4 is graph_video.AttemptVideo's job.
+estimate. The run's videos are re-rendered from the recorded arrays after the run (core/dataset/render.py).
+Each call also says on `run/{attempt,skill,stage}` where the attempt is (run_state.py), for Foxglove.
 Observations come from `joint_states` (arm and finger joints; the EE pose is FK through
 pinocchio, within 1e-8 m of the driver's `ee_pose`) and the same period's `ee_wrench`,
 read on demand (nodes/latest.py) so that the driver's hundreds of periods a second in lockstep do
@@ -47,8 +48,8 @@ from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
 from skillgen_ros.nodes import convert
-from skillgen_ros.nodes.graph_video import AttemptVideo
 from skillgen_ros.nodes.latest import LatestMessage, wait_future
+from skillgen_ros.nodes.run_state import RunState
 from skillgen_ros.nodes.state_history import DriverHistory, ns
 
 
@@ -66,7 +67,7 @@ class RosGraphEnv:
 
     def __init__(self, node: Node, timeouts: dict, demos_dir: str = "", action_noise: float = 0.05,
                  collision_source: int = PlanToPose.Request.SOURCE_POINT_CLOUD, control_hz: float = 20.0,
-                 driver_node: str = "sim_driver", video_camera_hz: float = 10.0,
+                 driver_node: str = "sim_driver",
                  observation_source: str = "ground_truth"):
         self.node = node
         self.t = dict(timeouts)
@@ -84,7 +85,9 @@ class RosGraphEnv:
         self.load_demos_cli = node.create_client(LoadDemos, "skill_replay/load_demos", callback_group=group)
         self.history = DriverHistory(node.create_client(StateHistory, "state_history", callback_group=group),
                                      lambda cli, req: self._call(cli, req, self.t["state"], "state_history", "TIMEOUT"))
-        self.video = AttemptVideo(node, driver_node, video_camera_hz, group)
+        self.driver_node = driver_node
+        self.state = RunState(node)
+        self._next_skill = 0
         self._lock = threading.RLock()
         self.osc_pub = node.create_publisher(OscTarget, "osc_target", 10)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -121,13 +124,6 @@ class RosGraphEnv:
             if all(j in pos for j in FINGER_JOINTS):
                 self._fingers = np.array([pos[j] for j in FINGER_JOINTS])
         return True
-
-    # -- video of a few attempts (session.run_generation calls these)
-    def start_capture(self) -> None:
-        self.video.start()
-
-    def stop_capture(self) -> list:
-        return self.video.stop()
 
     # -- plumbing
     def _call(self, client, request, timeout: float, what: str, reason: str, idempotent: bool = True):
@@ -186,6 +182,8 @@ class RosGraphEnv:
     # -- GenerationEnv
     def reset(self, task: str, variant: str, seed: int):
         self._await_graph()
+        self.state.stage("reset", -1)
+        self._next_skill = 0  # Algorithm 1 takes the skills in order: the next motion leads to this one
         req = ResetScene.Request(task=task, variant=variant, seed=int(seed))
         _, count = self._joints.snapshot()  # the driver publishes the reset state before it answers
         resp = self._call(self.reset_cli, req, self.t["reset"], "reset_scene", "TIMEOUT")
@@ -275,6 +273,7 @@ class RosGraphEnv:
         self.step(Pose.from_array(obs.ee_pose), g)
 
     def estimate_poses(self) -> dict[str, Pose]:
+        self.state.stage("perception", self._next_skill)
         if self._moved:
             self._capture()
         # No cloud (perception's camera subscription matched after the last frame, e.g. right after
@@ -352,6 +351,7 @@ class RosGraphEnv:
         self._planner_extras = bool(on)
 
     def plan_and_execute(self, target: Pose, mode: str, attached: str | None):
+        self.state.stage("motion", self._next_skill)
         req = PlanToPose.Request()
         req.target = convert.pose_stamped(target, "world", self.node.get_clock().now().to_msg())
         req.mode = PlanToPose.Request.TRANSFER if mode == "transfer" else PlanToPose.Request.TRANSIT
@@ -407,6 +407,8 @@ class RosGraphEnv:
     def replay_skill(self, skill_index: int, demo_index: int, T_W_O: np.ndarray, sigma: float,
                      recovery: bool, seed: int):
         """The skill_replay action: returns (steps, ok, reason, message); steps as arrays."""
+        self.state.stage("skill", skill_index)
+        self._next_skill = int(skill_index) + 1
         if not self.replay_ac.wait_for_server(timeout_sec=5.0):
             raise GraphCallError("replay_skill action server is not available", reason="SKILL_FAILED")
         goal = ReplaySkill.Goal(skill_index=int(skill_index), source_demo=int(demo_index),
@@ -490,6 +492,7 @@ class RosGraphEnv:
 
     def task_success(self) -> bool:
         self._check_driver()
+        self.state.stage("success", -1)
         resp = self._call(self.success_cli, TaskSuccess.Request(), self.t["reset"], "task_success", "TIMEOUT")
         return bool(resp.success)
 

@@ -52,7 +52,7 @@ from skillgen_interfaces.action import ExecuteTrajectory
 from skillgen_interfaces.msg import PhaseTiming
 from skillgen_interfaces.srv import PlanToPose
 from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
-from skillgen_ros.core.geometry import validate_pose
+from skillgen_ros.core.geometry import Pose, validate_pose
 from skillgen_ros.core.planning.collision import SHADOW_PX, AttachedObject, Box, CollisionModel
 from skillgen_ros.core.planning.ik import IKSolver
 from skillgen_ros.core.planning.kinematics import PandaKinematics
@@ -320,7 +320,8 @@ class PlannerNode(Node):
         ee = self.kin.fk_batch(result.trajectory.positions)[:, :3, 3]
         colours = {"retreat": (1.0, 0.6, 0.0), "transit": (0.1, 0.6, 1.0),
                    "transfer": (0.7, 0.2, 1.0), "approach": (0.2, 0.9, 0.2)}
-        wp_ee = self.kin.fk_batch(result.joint_path)[:, :3, 3]
+        wp_T = self.kin.fk_batch(result.joint_path)
+        wp_ee = wp_T[:, :3, 3]
         arr = MarkerArray()
         arr.markers.append(Marker(action=Marker.DELETEALL))
         for i, (phase, a, b) in enumerate(result.segments):
@@ -332,6 +333,13 @@ class PlannerNode(Node):
             m.color.a = 1.0
             m.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in wp_ee[a:b + 1]]
             arr.markers.append(m)
+            g = Marker(ns="planner_goal", id=i, type=Marker.ARROW, action=Marker.ADD)  # the segment's goal EE
+            g.header.frame_id, g.header.stamp = "world", stamp  # pose: the recorder makes it a TF frame
+            g.pose = convert.pose_to_msg(Pose.from_matrix(wp_T[b]))
+            g.scale.x, g.scale.y, g.scale.z = 0.06, 0.006, 0.006
+            g.color.r, g.color.g, g.color.b = colours.get(phase, (1.0, 1.0, 1.0))
+            g.color.a = 1.0
+            arr.markers.append(g)
         m = Marker(ns="planner_ee", id=100, type=Marker.LINE_STRIP, action=Marker.ADD)
         m.header.frame_id, m.header.stamp = "world", stamp
         m.pose.orientation.w = 1.0

@@ -21,7 +21,7 @@ from rosgraph_msgs.msg import Clock
 
 from rclpy.node import Node
 
-from skillgen_ros.core.bag.reader import BagReader, check_installed, message_class
+from skillgen_ros.core.bag.reader import BagReader, check_installed, message_class, playable_topics
 from skillgen_ros.core.errors import ParameterError
 from skillgen_ros.nodes.bag_qos import playback_qos
 from skillgen_ros.nodes.runtime import run_node
@@ -72,7 +72,13 @@ class Player(Node):
         for w in self._reader.warnings:
             self.get_logger().warn(w)
         # Recorded names are absolute; accept 'joint_states' for '/joint_states'.
-        topics = [t if t.startswith("/") else "/" + t for t in p["topics"] if t] or sorted(self._reader.topics)
+        topics = [t if t.startswith("/") else "/" + t for t in p["topics"] if t]
+        if not topics:  # the whole bag: what this machine can publish (named topics must all be)
+            topics, skipped = playable_topics(self._reader)
+            if not topics:
+                topics = sorted(self._reader.topics)  # nothing playable: check_installed names them all
+            elif skipped:
+                self.get_logger().warn(f"not replaying (type not installed): {', '.join(skipped)}")
         check_installed(self._reader, topics)  # unknown topic / type not installed -> BagError
         remaps = parse_remaps(p["remap"])
         self._topics = topics

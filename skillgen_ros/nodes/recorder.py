@@ -6,7 +6,11 @@ hidden helper node (`_<name>_io`) spun by its own single-threaded executor threa
 MultiThreadedExecutor (run_node's) takes messages too slowly on a loaded machine and lost half
 of a 500 Hz stream in the benchmark. Callbacks only stamp and enqueue; a dedicated writer
 thread owns the BagWriter, so neither executor ever blocks on disk or compression.
-Services `recorder/{start,stop,pause,resume}` (skillgen_interfaces/srv/Recorder). SIGINT and
+With `scene`, the recorder also writes what Foxglove's 3D panel needs, synthesized from the
+graph's topics by core/viz (nodes/scene_feed.py): /tf and /tf_static (tf2_msgs/msg/TFMessage; no
+node publishes /tf because rclpy cannot import tf2_msgs on a pip install), /robot_description and
+/scene/object_markers (docs/foxglove.md). `throttle` records some topics at a low rate (the
+front point cloud). Services `recorder/{start,stop,pause,resume}` (skillgen_interfaces/srv/Recorder). SIGINT and
 SIGTERM reach `destroy_node` through run_node's shutdown path, which finalizes the bag; after a
 SIGKILL every completed chunk stays readable (see core/bag/writer.py).
 """
@@ -33,6 +37,7 @@ from skillgen_ros.core import validation as V
 from skillgen_ros.core.errors import BagError, ParameterError, SkillGenError
 from skillgen_ros.nodes.bag_qos import qos_to_dict, subscription_qos
 from skillgen_ros.nodes.runtime import run_node
+from skillgen_ros.core.viz.scene import SCENE_TOPICS, VizMessage
 
 
 class State(enum.Enum):
@@ -115,6 +120,11 @@ class Recorder(Node):
         self.declare_parameter("discovery_period", 0.5, d(description="s between graph polls"))
         self.declare_parameter("queue_depth", 1000, d(description="subscription history depth (absorbs stalls)"))
         self.declare_parameter("max_queue_bytes", 1 << 30, d(description="writer backlog cap; beyond it messages drop"))
+        self.declare_parameter("scene", False, d(description="also write /tf, /tf_static, /robot_description and "
+                                                              "/scene/object_markers for Foxglove (docs/foxglove.md)"))
+        self.declare_parameter("scene_cameras", ["front", "wrist"], d(description="cameras whose pose frames /tf gets"))
+        self.declare_parameter("throttle", [""], d(description="'topic=seconds' entries: record at most one "
+                                                               "message per that many seconds on the topic"))
         self.declare_parameter("writable_roots", [""], d(description="extra directories a recorder/start output may "
                                                                      "lie under (the working and temp dirs always)"))
         p = {n: self.get_parameter(n).value for n in (
@@ -144,6 +154,19 @@ class Recorder(Node):
         self._hidden = bool(p["include_hidden"])
         self._depth = int(p["queue_depth"])
         self._max_queue = int(p["max_queue_bytes"])
+        self._scene = bool(self.get_parameter("scene").value)
+        self._scene_cameras = [c for c in self.get_parameter("scene_cameras").value if c]
+        self._feed = None
+        try:
+            self._throttle = {self.resolve_topic_name(t): ns for t, ns in
+                              _parse_throttle([t for t in self.get_parameter("throttle").value if t]).items()}
+        except SkillGenError:
+            raise
+        except Exception as e:  # noqa: BLE001 -- rclpy's InvalidTopicNameException
+            raise ParameterError(f"throttle: invalid topic name: {e}") from None
+        self._last_ns: dict[str, int] = {}
+        if self._scene:
+            self._exclude |= set(SCENE_TOPICS)  # written by the synthesizer, never twice
         self._lock = threading.Lock()
         self._state = State.IDLE
         self._writer: _WriterThread | None = None
@@ -205,9 +228,16 @@ class Recorder(Node):
             self._writer = _WriterThread(writer, self.get_logger(), self._max_queue)
             self._writer.start()
             self._bag_path = path.resolve()
-            self._state = State.RECORDING
             for spec in self._specs.values():  # re-declare topics subscribed before a stop
                 self._writer.queue.put(spec)
+            if self._scene:
+                for topic, (type_name, latched) in SCENE_TOPICS.items():
+                    self._writer.queue.put(TopicSpec(topic, type_name, ({
+                        "history": "keep_last", "depth": 1, "reliability": "reliable",
+                        "durability": "transient_local" if latched else "volatile"},)))
+            self._state = State.RECORDING  # after the specs: a message is only queued after its topic's spec
+            if self._scene:  # after RECORDING: a latched input delivered as the subscription is made counts
+                self._start_scene()
         self.get_logger().info(f"recording to {self._bag_path}")
         self._discover()
         return True, f"recording to {self._bag_path}"
@@ -291,13 +321,32 @@ class Recorder(Node):
             self.get_logger().info(f"recording {topic} [{type_name}] "
                                    f"({qos.reliability.name.lower()}, {qos.durability.name.lower()})")
 
+    def _start_scene(self) -> None:
+        """Scene subscriptions are made at the first start (a graph that never records pays nothing)."""
+        if self._feed is None:
+            from skillgen_ros.nodes.scene_feed import SceneFeed
+
+            self._feed = SceneFeed(self._io_node, self._on_scene, self._scene_cameras,
+                                   active=lambda: self._state == State.RECORDING)
+        self._feed.synth.reset()  # the new bag gets the latched scene topics again
+
+    def _on_scene(self, msg: VizMessage, log_ns: int) -> None:
+        writer = self._writer
+        if writer is not None and self._state == State.RECORDING:
+            writer.put_message(msg.topic, msg.data, log_ns, log_ns)
+
     def _on_message(self, topic: str, data: bytes, info) -> None:
         writer = self._writer
         if writer is None or self._state != State.RECORDING:
             self.skipped += 1  # arrived while paused or stopped (reported by the services)
             return
-        self.received += 1
         log_ns = info.get("received_timestamp") or time.time_ns()
+        period = self._throttle.get(topic)
+        if period is not None:
+            if log_ns - self._last_ns.get(topic, -period) < period:
+                return
+            self._last_ns[topic] = log_ns
+        self.received += 1
         writer.put_message(topic, data, log_ns, info.get("source_timestamp") or log_ns)
 
     def _spin_io(self) -> None:
@@ -320,6 +369,21 @@ class Recorder(Node):
         """Shutdown path (SIGINT/SIGTERM via run_node): finalize the bag before going away."""
         self._close()
         return super().destroy_node()
+
+
+def _parse_throttle(entries: list[str]) -> dict[str, int]:
+    """'topic=seconds' -> {topic: period ns}; ParameterError for a malformed entry."""
+    out = {}
+    for e in entries:
+        topic, _, sec = e.rpartition("=")
+        try:
+            period = float(sec)
+        except ValueError:
+            period = float("nan")
+        if not topic or not (0.0 < period < 3600.0):
+            raise ParameterError(f"throttle entries are 'topic=seconds' with 0 < seconds < 3600, got {e!r}")
+        out[topic] = int(period * 1e9)
+    return out
 
 
 def main(args=None) -> int:

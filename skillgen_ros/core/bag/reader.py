@@ -374,6 +374,20 @@ def message_class(type_name: str):
                        "TYPE_NOT_INSTALLED") from None
 
 
+def playable_topics(reader: BagReader) -> tuple[list[str], list[str]]:
+    """(topics whose types this machine can publish, the others as 'name (type)'): replaying a
+    whole bag skips the second list (a session bag's /tf is tf2_msgs, which is not on PyPI)."""
+    ok, skipped = [], []
+    for name in sorted(reader.topics):
+        t = reader.topics[name].type
+        try:
+            message_class(t)
+            ok.append(name)
+        except BagError:
+            skipped.append(f"{name} ({t})")
+    return ok, skipped
+
+
 def check_installed(reader: BagReader, topics: Iterable[str] | None = None) -> None:
     """Raise TYPE_NOT_INSTALLED naming every topic whose type this machine lacks."""
     names = list(topics) if topics is not None else list(reader.topics)

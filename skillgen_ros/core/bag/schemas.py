@@ -7,7 +7,9 @@ then `Typestore.generate_msgdef(type, ros_version=2)`: the root definition, then
 a line of 80 '=', `MSG: pkg/Type` and its definition, the layout rosbag2 writes and rosbags,
 Foxglove and mcap-ros2-support parse. Synthesized service/action wrappers (`X_SendGoal_Request`,
 `X_FeedbackMessage`, `X_Event`, ...) have no .msg text: their fields come from the rosidl type
-description JSON installed next to the .action/.srv. Pure: no rclpy.
+description JSON installed next to the .action/.srv. A standard type with no installed
+definition (tf2_msgs/msg/TFMessage: not on PyPI) takes rosbags' own ROS 2 Jazzy definition
+(`standard_schema_text`), so the recorder can write /tf under its standard name. Pure: no rclpy.
 """
 from __future__ import annotations
 
@@ -210,7 +212,11 @@ def schema_text(type_name: str) -> str:
     full = f"{pkg}/{kind}/{name}"
     try:
         text, _ = typestore(full).generate_msgdef(_theirs(full), ros_version=2)
-    except BagError:
+    except BagError as e:
+        if e.reason == "UNKNOWN_TYPE" and kind == "msg":
+            standard = standard_schema_text(full)
+            if standard:
+                return standard
         raise
     except Exception as e:  # rosbags raises TypesysError and friends on a bad definition
         raise BagError(f"cannot build the schema of '{type_name}': {type(e).__name__}: {e}",
@@ -231,4 +237,20 @@ def type_hash(type_name: str) -> str:
         for entry in json.loads(path.read_text()).get("type_hashes", []):
             if entry.get("type_name") == full:
                 return entry.get("hash_string", "")
+    if kind == "msg" and _find(pkg, "msg", name + ".msg") is None and standard_schema_text(full):
+        from rosbags.typesys import Stores  # a standard type we write by rosbags' definition (tf2_msgs)
+
+        return get_typestore(Stores.ROS2_JAZZY).hash_rihs01(full)  # agrees with rosidl's (JointState checked)
     return ""
+
+
+def standard_schema_text(type_name: str) -> str:
+    """rosbags' ROS 2 Jazzy schema of a standard message type, or '' if rosbags does not know it."""
+    from rosbags.typesys import Stores
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    pkg, kind, name = split_type(type_name)
+    full = f"{pkg}/msg/{name}"
+    if kind != "msg" or full not in store.types:
+        return ""
+    return store.generate_msgdef(full, ros_version=2)[0]

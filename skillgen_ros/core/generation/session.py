@@ -44,7 +44,8 @@ class RunRequest:
     output_dir: str = "out/run"
     source_demos: str = ""  # directory of source bags; "" = bags/<task>
     max_steps: int = 3000
-    video_attempts: int = 4  # attempts captured into the MP4 (successes and failures)
+    video_attempts: int = 4  # attempts in attempts.mp4 (0: no videos; else also one clip per outcome); only
+    # with the report (run_generation's write_report), which links them
     # skillgen: initiation poses tried per skill; 0 = the profile's (paper 1, skillgen_ros 6)
     initiation_candidates: int = 0
     release: ReleaseConfig = ReleaseConfig()  # how the hand lets go before a planned motion (release.py)
@@ -96,7 +97,7 @@ def check_output_dir(path: str) -> None:
         raise InvalidInputError(f"cannot create output directory {p}: {e.strerror}", reason="UNWRITABLE_OUTPUT") from e
     if not os.access(p, os.W_OK | os.X_OK):
         raise InvalidInputError(f"output directory {p} is not writable", reason="UNWRITABLE_OUTPUT")
-    for name in ("demo.hdf5", "failed.hdf5", "report.md"):
+    for name in ("demo.hdf5", "failed.hdf5", "report.md", "report.html"):
         if (p / name).exists():
             raise InvalidInputError(f"{p / name} already exists; choose a new output_dir (existing data is kept)",
                                     reason="OUTPUT_EXISTS")
@@ -124,6 +125,7 @@ class RunResult:
     dataset_path: str = ""
     failed_path: str = ""
     report_path: str = ""
+    html_path: str = ""
     video_path: str = ""
     wall_seconds: float = 0.0
     stopped_early: str = ""  # why the run ended before its attempts ran out ("" = it did not)
@@ -159,7 +161,6 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
     t0 = time.perf_counter()
     env_args = make_env_args(req.task, req.variant, req.method, req.seed, cfg, [o.id for o in task.objects],
                              [d.source for d in demos])
-    clips = []
     with AttemptSink(req.output_dir, env_args, keep_timings=keep_timings) as sink:
         out.dataset_path, out.failed_path = sink.dataset_path, sink.failed_path
         for k in range(req.attempts):
@@ -170,12 +171,7 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
             index = req.first_index + k
             if before_attempt:
                 before_attempt(k)
-            capture = hasattr(env, "start_capture") and len(clips) < req.video_attempts
-            if capture:
-                env.start_capture()
             r = run_attempt(env, demos, task, req.method, index, req.seed, cfg)
-            if capture:
-                clips.append((f"attempt {index}", r.success, env.stop_capture()))
             sink.add(r)
             out.results.append(r if keep_episodes else dataclasses.replace(r, episode=None))
             out.failures[r.reason.value] += 0 if r.success else 1
@@ -190,13 +186,28 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
                 break
     out.wall_seconds = time.perf_counter() - t0
     paths = {"dataset": out.dataset_path, "failed": out.failed_path}
-    if clips and any(len(c[2]) for c in clips):
-        from ..dataset.video import attempt_clip
+    bag = os.path.join(req.output_dir, "bag")
+    if os.path.isdir(bag):  # datagen records the session there (Generate.record_bag)
+        paths["bag"] = bag
+    if write_report and out.results:  # videos too: the report is what shows them
+        from ..dataset.report_html import write_report_html
 
-        out.video_path = attempt_clip(os.path.join(req.output_dir, "attempts.mp4"), clips)
-        paths["video"] = out.video_path
-    if write_report and out.results:
+        videos = _videos(req, out.results)
+        if videos.attempts_mp4:
+            out.video_path = paths["video"] = videos.attempts_mp4
         summary = RunSummary.from_results(req.task, req.variant, req.method, out.results, req.augment,
                                           out.wall_seconds, paths, profile=cfg.profile)
         out.report_path = _write_report(req.output_dir, [summary])
+        plots = {k: os.path.join(req.output_dir, f) for k, f in
+                 (("success", "success_rate.png"), ("failures", "failures.png"), ("timing", "timing.png"))}
+        out.html_path = write_report_html(req.output_dir, summary, out.results, videos, plots)
     return out
+
+
+def _videos(req: RunRequest, results: Sequence[AttemptResult]):
+    """attempts.mp4 and one clip per outcome, re-rendered at 480p from the attempts' arrays."""
+    from ..dataset.clips import RunVideos, write_run_videos
+
+    if req.video_attempts <= 0 or not results:
+        return RunVideos()
+    return write_run_videos(req.output_dir, req.task, req.variant, results, req.video_attempts)

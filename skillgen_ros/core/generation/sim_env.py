@@ -114,8 +114,6 @@ class SimGenerationEnv:
         self.last_estimate: tuple[int, dict] | None = None  # (sensor stamp ns, what perception returned)
         self._collided = False
         self._models = None
-        self._frames: list | None = None
-        self._capture_k = 0
         self._last_attached: str | None = None
         self._last_support: str | None = None
 
@@ -253,7 +251,6 @@ class SimGenerationEnv:
             if check and w.robot_in_collision_with(check):
                 self._collided = True
             observations.append(self.observe())
-            self._capture_frame()
             if done is not None:
                 break
         return ("SUCCESS" if done.code.name == "SUCCESSFUL" else "EXECUTION_FAILED"), observations
@@ -261,24 +258,7 @@ class SimGenerationEnv:
     def step(self, target: Pose, gripper: float) -> Observation:
         self.world.step(target, gripper)
         self._track_grasp(float(gripper))
-        self._capture_frame()
         return self.observe()
-
-    # -- video of a few attempts (session.run_generation calls these)
-    def start_capture(self) -> None:
-        self._frames, self._capture_k = [], 0
-
-    def stop_capture(self) -> list:
-        frames, self._frames = self._frames or [], None
-        return frames
-
-    def _capture_frame(self) -> None:
-        if self._frames is None:
-            return
-        self._capture_k += 1
-        if self._capture_k % 2 == 0:  # 10 fps of a 20 Hz attempt
-            if "front" in self.world.cameras:
-                self._frames.append(self.world.render("front").rgb)
 
     def _track_grasp(self, gripper: float) -> None:
         """Rigid attachment from the command stream: a few periods after the hand closes on the

@@ -7,7 +7,7 @@ velocity motors are disabled; every physics step applies torques from the OSC or
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Iterable
+from typing import Iterable, Mapping
 
 import numpy as np
 import pybullet
@@ -259,6 +259,16 @@ class SimWorld:
         self._hold_q = s[1:8].copy()
         self._osc_target = self.ee_pose()
         self._mode, self._traj = "joint_hold", None
+
+    def show_state(self, q, object_poses: Mapping[str, Pose]) -> None:
+        """Place the arm and fingers (q: 7 or 9 positions) and the objects kinematically, no physics:
+        a recorded step re-shown for rendering (core/dataset/render.py)."""
+        q = np.asarray(q, float).reshape(-1)
+        for j, v in zip(self.movable, q):
+            self.p.resetJointState(self.robot, j, float(v), 0.0)
+        for oid, pose in object_poses.items():
+            if oid in self.bodies:
+                self._set_object_pose(oid, pose)
 
     # ------------------------------------------------------------------ control
     def _dynamics(self, q9, qd9):

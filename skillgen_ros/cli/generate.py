@@ -4,6 +4,7 @@
     skillgen generate --task Square --variant D2 --method mimicgen --attempts 200 --seed 3
     skillgen generate --profile paper       the paper's Algorithm 1 (see core/generation/profile.py)
     skillgen generate --in-process          same algorithm, no ROS graph (SimGenerationEnv)
+    skillgen generate --workers 4           the same run on 4 Ray workers (docs/distributed.md)
 
 Graph mode launches the `datagen` graph (sim_driver in lockstep, perception in estimate mode,
 planner, skill_replay, datagen, recorder) as separate processes, sends a Generate goal through
@@ -53,6 +54,18 @@ def _parser() -> argparse.ArgumentParser:
                    help="what obs/<id>_pose records: the sim's true poses, or the estimates (in-process; the "
                         "graph uses params/datagen.yaml's observation_source)")
     p.add_argument("--startup-timeout", type=float, default=60.0)
+    d = p.add_argument_group("distributed (docs/distributed.md)")
+    d.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="run the attempts on N Ray workers (in-process envs with --in-process, else one node "
+                        "graph per worker in its own ROS_DOMAIN_ID); 1 = this process")
+    d.add_argument("--address", default="", metavar="ADDR",
+                   help="join a Ray cluster: auto, host:port or ray://host:port (default: a local instance)")
+    d.add_argument("--resume", action="store_true",
+                   help="continue the interrupted distributed run in --output; finished indices are not re-run")
+    d.add_argument("--dashboard", action="store_true", help="start Ray's dashboard (127.0.0.1:8265)")
+    d.add_argument("--domain-ids", default="", metavar="A-B",
+                   help="graph workers lease their ROS_DOMAIN_IDs from these (default 1-101)")
+    d.add_argument("--verbose", action="store_true", help="per-worker status (attempts, successes, last reason)")
     return p
 
 
@@ -89,21 +102,28 @@ def _print_result(attempts, successes, failures: dict, paths: dict) -> None:
             print(f"{k:8s} {v}")
 
 
-def run_in_process(a) -> int:
-    from tqdm import tqdm
+def _request(a):
+    """The command line as a RunRequest (in-process and distributed runs)."""
+    from skillgen_ros.core.generation.session import RunRequest
 
-    from skillgen_ros.core.generation.session import RunRequest, run_generation, validate_request
-    from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
-    from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
-    from skillgen_ros.core.tasks import TASK_NAMES, get_task
-
-    req = RunRequest(task=a.task, variant=a.variant, method=a.method, attempts=a.attempts,
+    return RunRequest(task=a.task, variant=a.variant, method=a.method, attempts=a.attempts,
                      target_successes=a.target_successes, seed=a.seed, first_index=a.first_index,
                      augment=a.augment, selection=a.selection, output_dir=_output(a), source_demos=a.source_demos,
                      observation_source=a.observation_source,
                      **({"video_attempts": a.video_attempts} if a.video_attempts >= 0 else {}),
                      **({"initiation_candidates": a.initiation_candidates} if a.initiation_candidates else {}),
                      **({"profile": a.profile} if a.profile else {}))
+
+
+def run_in_process(a) -> int:
+    from tqdm import tqdm
+
+    from skillgen_ros.core.generation.session import run_generation, validate_request
+    from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
+    from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
+    from skillgen_ros.core.tasks import TASK_NAMES, get_task
+
+    req = _request(a)
     validate_request(req, TASK_NAMES)
     paths = expand_bag_paths([a.source_demos or os.path.join("bags", a.task)])
     demos = load_source_demos(paths, get_task(a.task)) if paths else []
@@ -175,6 +195,10 @@ def run_graph(a) -> int:
 def main(argv: list[str]) -> int:
     a = _parser().parse_args(argv)
     try:
+        if a.workers > 1 or a.address or a.resume:
+            from skillgen_ros.cli.distributed import run_distributed_cli
+
+            return run_distributed_cli(a, _request(a))
         return run_in_process(a) if a.in_process else run_graph(a)
     except SkillGenError as e:
         print(str(e), file=sys.stderr)

@@ -1,0 +1,199 @@
+"""The worker pool on Ray: local instance or an existing cluster, one actor per worker.
+
+Ray is imported here and only here, and only when a run asks for workers > 1 or an address. A
+local instance binds to 127.0.0.1 with the dashboard off unless asked (then on 127.0.0.1 too).
+Each worker is a threaded actor around core/distributed/worker.RangeWorker; an actor whose
+process dies (killed, OOM, its node lost) is restarted by Ray (max_restarts) and the range it was
+running is handed out again by the driver (core/distributed/run.py), so Ray never re-runs a task
+on its own (max_task_retries 0): the driver alone decides what runs, and records each index once.
+"""
+from __future__ import annotations
+
+import os
+import re
+import socket
+import time
+from dataclasses import dataclass
+
+from ..errors import SkillGenError
+from .schedule import IndexRange
+from .shards import ShardPayload
+
+ACTOR_RESTARTS = 3  # per worker; a worker lost more often than this is dropped from the run
+_ADDRESS = re.compile(r"^(?:ray://)?(\[[0-9a-fA-F:]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
+
+
+class RayConnectError(SkillGenError):
+    reason = "RAY_UNREACHABLE"
+
+
+class WorkerLost(Exception):
+    """A worker's process died while it ran a range."""
+
+
+def check_address(address: str) -> tuple[str, int] | None:
+    """None for "" / "auto"; (host, port) for host:port or ray://host:port; INVALID_ADDRESS otherwise."""
+    if address in ("", "auto"):
+        return None
+    m = _ADDRESS.match(address)
+    if not m or not 0 < int(m.group(2)) < 65536:
+        raise SkillGenError(f"Ray address {address!r} is not 'auto', 'host:port' or 'ray://host:port'",
+                            reason="INVALID_ADDRESS")
+    return m.group(1).strip("[]"), int(m.group(2))
+
+
+def connect(address: str = "", workers: int = 2, dashboard: bool = False, verbose: bool = False,
+            timeout: float = 5.0) -> bool:
+    """Start (address "") or join a Ray instance; True when this call started it (shut it down
+    after). Already initialized (a test, the trainer): use that one."""
+    import ray
+
+    if ray.is_initialized():
+        return False
+    hp = check_address(address)
+    if hp is not None:  # a quick TCP check: ray.init would retry an unreachable head for a minute
+        try:
+            socket.create_connection(hp, timeout=timeout).close()
+        except OSError as e:
+            raise RayConnectError(f"cannot reach a Ray cluster at {address}: {e.strerror or e}") from None
+    kw = dict(include_dashboard=dashboard, log_to_driver=verbose, logging_level="WARNING",
+              configure_logging=True)
+    try:
+        if address:
+            ray.init(address=address, **({} if address.startswith("ray://") else kw))
+        else:
+            ray.init(num_cpus=max(workers, os.cpu_count() or 1), _node_ip_address="127.0.0.1",
+                     dashboard_host="127.0.0.1", **kw)
+    except Exception as e:  # noqa: BLE001 -- ray raises ConnectionError, RuntimeError, ValueError ...
+        raise RayConnectError(f"cannot start or join Ray at {address or 'a local instance'}: "
+                              f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}") from None
+    return True
+
+
+@dataclass
+class _Slot:
+    name: str
+    actor: object
+    ref: object = None  # the running range's result
+    range: IndexRange | None = None
+    started: float = 0.0
+    losses: int = 0
+    alive: bool = True
+
+
+class RayPool:
+    """N RangeWorker actors; submit ranges, poll finished ones, read status, stop them."""
+
+    def __init__(self, workers: int, spec, req, demos_tar: bytes, address: str = "", dashboard: bool = False,
+                 verbose: bool = False, ready_timeout: float = 600.0):
+        import ray
+
+        from .worker import RangeWorker
+
+        self._started = connect(address, workers, dashboard, verbose)
+        self._ray = ray
+        cls = ray.remote(RangeWorker).options(num_cpus=1, max_restarts=ACTOR_RESTARTS, max_task_retries=0,
+                                              max_concurrency=4)
+        tar = ray.put(demos_tar)
+        self.slots = [_Slot(f"w{i}", cls.remote(f"w{i}", spec, req, tar)) for i in range(workers)]
+        self.overhead: list[float] = []  # per range: driver-seen seconds - the worker's own
+        try:
+            self._await_ready(ready_timeout)
+        except BaseException:
+            self.close()
+            raise
+
+    def _await_ready(self, timeout: float) -> None:
+        ray = self._ray
+        refs = {s.actor.ready.remote(): s for s in self.slots}
+        ready, pending = ray.wait(list(refs), num_returns=len(refs), timeout=timeout)
+        if pending:
+            raise SkillGenError(f"{len(pending)} of {len(refs)} workers did not start in {timeout:g} s (not "
+                                "enough CPUs in the cluster?)", reason="WORKERS_NOT_READY")
+        for r in ready:
+            try:
+                ray.get(r)
+            except Exception as e:  # noqa: BLE001 -- the worker's constructor raised: say why
+                raise SkillGenError(f"worker {refs[r].name} failed to start: {_cause(e)}",
+                                    reason=getattr(_inner(e), "reason", "WORKERS_NOT_READY")) from None
+
+    @property
+    def size(self) -> int:
+        return sum(s.alive for s in self.slots)
+
+    def idle(self) -> list[_Slot]:
+        return [s for s in self.slots if s.alive and s.ref is None]
+
+    def busy(self) -> list[_Slot]:
+        return [s for s in self.slots if s.ref is not None]
+
+    def submit(self, slot: _Slot, r: IndexRange) -> None:
+        slot.range, slot.started = r, time.perf_counter()
+        slot.ref = slot.actor.run_range.remote(r.first, r.end)
+
+    def poll(self, timeout: float) -> list[tuple[_Slot, IndexRange, ShardPayload | None]]:
+        """Finished ranges: (slot, range, payload), payload None when the worker died (WorkerLost).
+        A range that raised (a request-level error) raises here with its reason."""
+        ray = self._ray
+        busy = {s.ref: s for s in self.busy()}
+        if not busy:
+            return []
+        ready, _ = ray.wait(list(busy), num_returns=1, timeout=timeout)
+        ready += ray.wait([r for r in busy if r not in ready], num_returns=len(busy) - len(ready), timeout=0)[0] \
+            if len(busy) > len(ready) else []
+        out = []
+        for ref in ready:
+            s = busy[ref]
+            r, s.ref, s.range = s.range, None, None
+            try:
+                p = ray.get(ref)
+                self.overhead.append(max(0.0, time.perf_counter() - s.started - p.seconds))
+                out.append((s, r, p))
+            except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
+                    ray.exceptions.ObjectLostError):
+                s.losses += 1
+                s.alive = s.losses <= ACTOR_RESTARTS
+                out.append((s, r, None))
+            except ray.exceptions.RayTaskError as e:
+                raise SkillGenError(f"worker {s.name} failed: {_cause(e)}",
+                                    reason=getattr(_inner(e), "reason", "WORKER_FAILED")) from None
+        return out
+
+    def statuses(self, timeout: float = 0.5) -> list:
+        ray = self._ray
+        refs = {s.actor.status.remote(): s for s in self.slots if s.alive}
+        ready, _ = ray.wait(list(refs), num_returns=len(refs), timeout=timeout)
+        out = []
+        for r in ready:
+            try:
+                out.append(ray.get(r))
+            except Exception:  # noqa: BLE001 -- a dead or restarting worker has no status now
+                pass
+        return sorted(out, key=lambda st: st.worker)
+
+    def stop(self) -> None:
+        for s in self.slots:
+            if s.alive:
+                s.actor.stop.remote()
+
+    def close(self, timeout: float = 60.0) -> None:
+        """Workers close their envs (a graph worker stops its graph), then the actors go."""
+        refs = [s.actor.close.remote() for s in self.slots if s.alive]
+        if refs:
+            self._ray.wait(refs, num_returns=len(refs), timeout=timeout)
+        for s in self.slots:
+            try:
+                self._ray.kill(s.actor, no_restart=True)
+            except Exception:  # noqa: BLE001 -- already gone
+                pass
+        if self._started:
+            self._ray.shutdown()
+
+
+def _inner(e: Exception) -> Exception:
+    return getattr(e, "cause", None) or e
+
+
+def _cause(e: Exception) -> str:
+    c = _inner(e)
+    return f"{type(c).__name__}: {c.args[0] if c.args else c}"

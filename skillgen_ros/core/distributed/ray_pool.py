@@ -20,6 +20,7 @@ from .schedule import IndexRange
 from .shards import ShardPayload
 
 ACTOR_RESTARTS = 3  # per worker; a worker lost more often than this is dropped from the run
+RESTART_TIMEOUT_S = 600.0  # a lost worker not back (env rebuilt) within this is dropped
 _ADDRESS = re.compile(r"^(?:ray://)?(\[[0-9a-fA-F:]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
 
 
@@ -46,6 +47,8 @@ def connect(address: str = "", workers: int = 2, dashboard: bool = False, verbos
             timeout: float = 5.0) -> bool:
     """Start (address "") or join a Ray instance; True when this call started it (shut it down
     after). Already initialized (a test, the trainer): use that one."""
+    if not address:  # Ray resolves 127.0.0.1 to the routable IP unless cluster mode is off: keep it on loopback
+        os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
     import ray
 
     if ray.is_initialized():
@@ -62,7 +65,8 @@ def connect(address: str = "", workers: int = 2, dashboard: bool = False, verbos
         if address:
             ray.init(address=address, **({} if address.startswith("ray://") else kw))
         else:
-            ray.init(num_cpus=max(workers, os.cpu_count() or 1), _node_ip_address="127.0.0.1",
+            # "local": a new instance even when another one runs on this host (ray.init() would join it)
+            ray.init(address="local", num_cpus=max(workers, os.cpu_count() or 1), _node_ip_address="127.0.0.1",
                      dashboard_host="127.0.0.1", **kw)
     except Exception as e:  # noqa: BLE001 -- ray raises ConnectionError, RuntimeError, ValueError ...
         raise RayConnectError(f"cannot start or join Ray at {address or 'a local instance'}: "
@@ -79,34 +83,45 @@ class _Slot:
     started: float = 0.0
     losses: int = 0
     alive: bool = True
+    probe: object = None  # after a loss: `ready` of the restarting actor; idle again once it answers
+    retry_at: float = 0.0  # > 0: probe again at this time (the actor was still restarting)
+    lost_at: float = 0.0
 
 
 class RayPool:
     """N RangeWorker actors; submit ranges, poll finished ones, read status, stop them."""
 
     def __init__(self, workers: int, spec, req, demos_tar: bytes, address: str = "", dashboard: bool = False,
-                 verbose: bool = False, ready_timeout: float = 600.0):
+                 verbose: bool = False, ready_timeout: float = 600.0, should_abort=None):
+        self._started = connect(address, workers, dashboard, verbose)  # before `import ray`: see connect
         import ray
 
         from .worker import RangeWorker
 
-        self._started = connect(address, workers, dashboard, verbose)
         self._ray = ray
         cls = ray.remote(RangeWorker).options(num_cpus=1, max_restarts=ACTOR_RESTARTS, max_task_retries=0,
                                               max_concurrency=4)
-        tar = ray.put(demos_tar)
-        self.slots = [_Slot(f"w{i}", cls.remote(f"w{i}", spec, req, tar)) for i in range(workers)]
+        self._tar = ray.put(demos_tar)  # held for the pool's life: a restarted actor reads it again
+        self.slots = [_Slot(f"w{i}", cls.remote(f"w{i}", spec, req, self._tar)) for i in range(workers)]
         self.overhead: list[float] = []  # per range: driver-seen seconds - the worker's own
         try:
-            self._await_ready(ready_timeout)
+            self._await_ready(ready_timeout, should_abort)
         except BaseException:
             self.close()
             raise
 
-    def _await_ready(self, timeout: float) -> None:
+    def _await_ready(self, timeout: float, should_abort=None) -> None:
+        """Every worker built its env; should_abort() -> reason ends the wait (a canceled goal)."""
         ray = self._ray
         refs = {s.actor.ready.remote(): s for s in self.slots}
-        ready, pending = ray.wait(list(refs), num_returns=len(refs), timeout=timeout)
+        end = time.monotonic() + timeout
+        ready, pending = [], list(refs)
+        while pending and time.monotonic() < end:
+            why = should_abort() if should_abort else ""
+            if why:
+                raise SkillGenError(f"{why} while the workers started", reason=why)
+            done, pending = ray.wait(pending, num_returns=len(pending), timeout=0.5)
+            ready += done
         if pending:
             raise SkillGenError(f"{len(pending)} of {len(refs)} workers did not start in {timeout:g} s (not "
                                 "enough CPUs in the cluster?)", reason="WORKERS_NOT_READY")
@@ -122,10 +137,11 @@ class RayPool:
         return sum(s.alive for s in self.slots)
 
     def idle(self) -> list[_Slot]:
-        return [s for s in self.slots if s.alive and s.ref is None]
+        return [s for s in self.slots if s.alive and s.ref is None and s.probe is None and not s.retry_at]
 
     def busy(self) -> list[_Slot]:
-        return [s for s in self.slots if s.ref is not None]
+        """Slots running a range or restarting after a loss (the driver waits for both)."""
+        return [s for s in self.slots if s.ref is not None or s.probe is not None or s.retry_at]
 
     def submit(self, slot: _Slot, r: IndexRange) -> None:
         slot.range, slot.started = r, time.perf_counter()
@@ -135,14 +151,22 @@ class RayPool:
         """Finished ranges: (slot, range, payload), payload None when the worker died (WorkerLost).
         A range that raised (a request-level error) raises here with its reason."""
         ray = self._ray
-        busy = {s.ref: s for s in self.busy()}
-        if not busy:
+        now = time.monotonic()
+        for s in self.slots:
+            if s.retry_at and now >= s.retry_at:
+                s.retry_at, s.probe = 0.0, s.actor.ready.remote()
+        busy = {s.ref: s for s in self.slots if s.ref is not None}
+        probes = {s.probe: s for s in self.slots if s.probe is not None}
+        if not busy and not probes:
+            time.sleep(min(timeout, 0.2)) if any(s.retry_at for s in self.slots) else None
             return []
-        ready, _ = ray.wait(list(busy), num_returns=1, timeout=timeout)
-        ready += ray.wait([r for r in busy if r not in ready], num_returns=len(busy) - len(ready), timeout=0)[0] \
-            if len(busy) > len(ready) else []
+        ready, _ = ray.wait(list(busy) + list(probes), num_returns=1, timeout=timeout)
+        rest = [r for r in [*busy, *probes] if r not in ready]
+        ready += ray.wait(rest, num_returns=len(rest), timeout=0)[0] if rest else []
+        for ref in (r for r in ready if r in probes):
+            self._recovered(probes[ref], ref)
         out = []
-        for ref in ready:
+        for ref in (r for r in ready if r in busy):
             s = busy[ref]
             r, s.ref, s.range = s.range, None, None
             try:
@@ -153,11 +177,24 @@ class RayPool:
                     ray.exceptions.ObjectLostError):
                 s.losses += 1
                 s.alive = s.losses <= ACTOR_RESTARTS
+                s.probe, s.lost_at = (s.actor.ready.remote() if s.alive else None), time.monotonic()
                 out.append((s, r, None))
             except ray.exceptions.RayTaskError as e:
                 raise SkillGenError(f"worker {s.name} failed: {_cause(e)}",
                                     reason=getattr(_inner(e), "reason", "WORKER_FAILED")) from None
         return out
+
+    def _recovered(self, s: _Slot, ref) -> None:
+        """A lost worker's probe answered: restarted (idle again), still restarting, or gone."""
+        ray = self._ray
+        s.probe = None
+        try:
+            ray.get(ref)
+        except ray.exceptions.ActorUnavailableError:  # still restarting: ask again in a second
+            s.alive = time.monotonic() - s.lost_at < RESTART_TIMEOUT_S
+            s.retry_at = time.monotonic() + 1.0 if s.alive else 0.0
+        except Exception:  # noqa: BLE001 -- died for good (restarts used up, or its constructor fails now)
+            s.alive = False
 
     def statuses(self, timeout: float = 0.5) -> list:
         ray = self._ray

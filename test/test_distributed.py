@@ -215,3 +215,54 @@ def test_a_bad_address_is_a_clear_error_without_a_traceback(tmp_path, address, r
     assert p.returncode == 2, p.stderr
     assert reason in p.stderr and "Traceback" not in p.stderr + p.stdout
     assert not (tmp_path / "o" / "demo.hdf5").exists()
+
+
+def test_the_local_ray_instance_listens_on_loopback_only(pool):
+    import ipaddress
+
+    import psutil
+
+    pids = {s.pid for s in pool.statuses(timeout=60)}
+    assert len(pids) == 2
+    for pid in pids:  # each worker, and the raylet that started it
+        for proc in (psutil.Process(pid), psutil.Process(pid).parent()):
+            listening = [c.laddr.ip for c in proc.net_connections(kind="inet") if c.status == psutil.CONN_LISTEN]
+            assert listening, f"{proc.name()} listens nowhere?"
+            for ip in listening:
+                addr = ipaddress.ip_address(ip)
+                addr = getattr(addr, "ipv4_mapped", None) or addr
+                assert addr.is_loopback, f"{proc.name()} (pid {proc.pid}) listens on {ip}"
+
+
+def test_ctrl_c_then_resume_on_the_command_line(tmp_path):
+    """Ctrl-C (SIGINT to the terminal's process group) stops the run cleanly; --resume finishes it
+    without running a journaled index again (every journal line names new indices)."""
+    import json
+    import time
+
+    out = tmp_path / "cli"
+    cmd = [sys.executable, "-m", "skillgen_ros.cli.main", "generate", "--in-process", "--workers", "2",
+           "--perception", "ground_truth", "--variant", "D0", "--seed", "3", "--attempts", "6",
+           "--video-attempts", "0", "--output", str(out)]
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    journal = out / "shards" / "journal.jsonl"
+    p = subprocess.Popen(cmd, env=env, cwd=REPO, start_new_session=True, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    try:
+        end = time.monotonic() + 600
+        while p.poll() is None and time.monotonic() < end and not (journal.exists() and journal.read_text()):
+            time.sleep(0.2)
+        assert p.poll() is None, p.communicate()[1][-2000:]
+        os.killpg(p.pid, signal.SIGINT)
+        so, se = p.communicate(timeout=600)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+    assert p.returncode == 0 and "--resume" in se and "Traceback" not in se, se[-2000:]
+    first = [r["index"] for line in journal.read_text().splitlines() for r in json.loads(line)["records"]]
+    assert 1 <= len(first) < 6
+    r = subprocess.run(cmd + ["--resume"], env=env, cwd=REPO, capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr[-2000:]
+    ran = [r["index"] for line in journal.read_text().splitlines() for r in json.loads(line)["records"]]
+    assert sorted(ran) == list(range(6)), "each index journaled once: nothing finished ran again"
+    assert _indices(out) == list(range(6))

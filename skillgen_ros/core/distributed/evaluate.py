@@ -33,7 +33,7 @@ def _rollout_range(ckpt: bytes, demos_tar: bytes, first: int, n: int, kw: dict) 
 
 def evaluate_distributed(checkpoint_path: str, task: str, variant: str | None = None, mode: str | None = None,
                          rollouts: int = 50, seed: int = 0, workers: int = 2, address: str = "",
-                         demos_dir: str = "bags", first_index: int = 0, perception: str = "ground_truth",
+                         demos_dir: str = "bags", first_index: int = 0, perception: str = "ground_truth", config=None,
                          on_range: Callable[[int, EvalSummary], None] | None = None, max_chunk: int = 8) -> EvalSummary:
     """`rollouts` rollouts on `workers` Ray workers (a local instance, or the cluster at `address`)."""
     from .ray_pool import connect
@@ -46,7 +46,8 @@ def evaluate_distributed(checkpoint_path: str, task: str, variant: str | None = 
             ckpt = ray.put(f.read())
         task_dir = os.path.join(demos_dir, task)
         demos = ray.put(pack_dir(task_dir) if os.path.isdir(task_dir) else b"")
-        kw = {"task": task, "variant": variant, "mode": mode, "seed": seed, "perception": perception}
+        kw = {"task": task, "variant": variant, "mode": mode, "seed": seed, "perception": perception,
+              **({"config": config} if config is not None else {})}
         remote = ray.remote(num_cpus=1, max_retries=3)(_rollout_range)
         size = max(1, min(max_chunk, math.ceil(rollouts / (2 * workers))))
         refs = {remote.remote(ckpt, demos, i, min(size, first_index + rollouts - i), kw): i

@@ -104,6 +104,7 @@ class RayPool:
         self._tar = ray.put(demos_tar)  # held for the pool's life: a restarted actor reads it again
         self.slots = [_Slot(f"w{i}", cls.remote(f"w{i}", spec, req, self._tar)) for i in range(workers)]
         self.overhead: list[float] = []  # per range: driver-seen seconds - the worker's own
+        self.run = ""  # the run being served (new_run): a stop reaches that run's ranges only
         try:
             self._await_ready(ready_timeout, should_abort)
         except BaseException:
@@ -143,9 +144,15 @@ class RayPool:
         """Slots running a range or restarting after a loss (the driver waits for both)."""
         return [s for s in self.slots if s.ref is not None or s.probe is not None or s.retry_at]
 
+    def new_run(self) -> None:
+        """A run starts on this pool (one pool can serve several runs, one after the other)."""
+        import uuid
+
+        self.run, self.overhead = uuid.uuid4().hex, []
+
     def submit(self, slot: _Slot, r: IndexRange) -> None:
         slot.range, slot.started = r, time.perf_counter()
-        slot.ref = slot.actor.run_range.remote(r.first, r.end)
+        slot.ref = slot.actor.run_range.remote(r.first, r.end, self.run)
 
     def poll(self, timeout: float) -> list[tuple[_Slot, IndexRange, ShardPayload | None]]:
         """Finished ranges: (slot, range, payload), payload None when the worker died (WorkerLost).
@@ -211,7 +218,7 @@ class RayPool:
     def stop(self) -> None:
         for s in self.slots:
             if s.alive:
-                s.actor.stop.remote()
+                s.actor.stop.remote(self.run)
 
     def close(self, timeout: float = 60.0) -> None:
         """Workers close their envs (a graph worker stops its graph), then the actors go."""

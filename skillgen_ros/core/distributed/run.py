@@ -37,6 +37,7 @@ def run_distributed(pool, req: RunRequest, resume: bool = False,
     """Run `req` on `pool` (ray_pool.RayPool or anything with its methods). on_progress(p, statuses)
     gets the aggregated progress and the workers' statuses; should_stop() -> reason stops the run."""
     store = store or ShardStore(req.output_dir).open(req, resume)
+    pool.new_run()
     sched = IndexScheduler(req.first_index, req.attempts, pool.size, req.target_successes, store.done)
     out = DistributedResult(req)
     t0 = time.perf_counter()
@@ -63,6 +64,9 @@ def run_distributed(pool, req: RunRequest, resume: bool = False,
                 sched.release(r)
                 out.lost_ranges += 1
                 continue
+            if not payload.records and not out.stopped_early:  # never loop on a worker that runs nothing
+                raise SkillGenError(f"worker {payload.worker} returned range {r.first}..{r.end - 1} without running it",
+                                    reason="WORKER_FAILED")
             store.add(payload)
             sched.finish(r, payload.indices)
             out.ran += sorted(payload.indices)

@@ -168,7 +168,9 @@ class ShardStore:
         return {i: r.success for i, r in self.records.items()}
 
     def add(self, p: ShardPayload) -> None:
-        """Persist a payload's files, then its journal line (the commit point)."""
+        """Persist a payload's files, then its journal line (the commit point); nothing for an empty one."""
+        if not p.records:
+            return
         files = []
         if p.records:
             stem = f"{p.range.first:09d}-{p.range.end:09d}-{secrets.token_hex(3)}"

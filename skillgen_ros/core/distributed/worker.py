@@ -77,13 +77,25 @@ def make_runner(spec: WorkerSpec, req: RunRequest, worker: str):
     return GraphRunner(spec, req, worker)
 
 
+def _ignore_sigint() -> None:
+    """A terminal's Ctrl-C reaches every process of its group, local Ray workers included; the
+    driver stops workers itself (after their current attempt), so they do not die of it."""
+    import signal
+
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: nothing to do
+        pass
+
+
 class RangeWorker:
     def __init__(self, worker: str, spec: WorkerSpec, req: RunRequest, demos_tar: bytes):
+        _ignore_sigint()
         self.worker, self.spec = worker, spec
         self.tmp = tempfile.mkdtemp(prefix=f"skillgen_{worker}_")
         self.req = dataclasses.replace(req, source_demos=unpack_dir(demos_tar, self.tmp), video_attempts=0,
                                        target_successes=0)
-        self._stop = threading.Event()
+        self._stopped: set[str] = set()  # runs told to stop (a pool serves several runs: test, resume)
         self._lock = threading.Lock()
         self._range: tuple[int, int] | None = None
         self._done = self._succ = self._tot = self._tot_succ = 0
@@ -93,9 +105,10 @@ class RangeWorker:
     def ready(self) -> int:
         return os.getpid()
 
-    def stop(self) -> None:
-        """End the running range after its current attempt; no range starts after this."""
-        self._stop.set()
+    def stop(self, run: str = "") -> None:
+        """End run `run`'s range after its current attempt; none of its ranges starts after this."""
+        with self._lock:
+            self._stopped.add(run)
 
     def status(self) -> WorkerStatus:
         import socket
@@ -110,17 +123,17 @@ class RangeWorker:
             self._tot_succ += p.successes - self._succ
             self._done, self._succ, self._last = p.attempts, p.successes, p.last_reason
 
-    def run_range(self, first: int, end: int) -> ShardPayload:
-        """Attempts first..end-1 (fewer when stopped: the finished prefix), as a payload."""
+    def run_range(self, first: int, end: int, run: str = "") -> ShardPayload:
+        """Attempts first..end-1 of run `run` (fewer when stopped: the finished prefix), as a payload."""
         r = IndexRange(first, end)
         out = os.path.join(self.tmp, f"range_{first}_{end}_{time.monotonic_ns()}")
         with self._lock:
             self._range, self._done, self._succ = (first, end), 0, 0
         t0 = time.perf_counter()
         try:
-            if not self._stop.is_set():
+            if run not in self._stopped:
                 req = dataclasses.replace(self.req, first_index=first, attempts=end - first, output_dir=out)
-                self.runner.run(req, self._progress, lambda: "CANCELED" if self._stop.is_set() else "")
+                self.runner.run(req, self._progress, lambda: "CANCELED" if run in self._stopped else "")
             return pack_shard(out, r, self.worker, time.perf_counter() - t0)
         finally:
             shutil.rmtree(out, ignore_errors=True)

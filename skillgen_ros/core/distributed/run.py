@@ -102,7 +102,7 @@ def _finish(out: DistributedResult, store: ShardStore, sched: IndexScheduler, re
     out.results = [store.records[i] for i in kept]
     out.failures = Counter(r.reason.value for r in out.results if not r.success)
     out.dataset_path, out.failed_path = store.merge(kept)
-    if write_report and out.results:
+    if write_report and out.results and not out.stopped_early:  # reports are never overwritten: once, at the end
         from ..dataset.report import RunSummary, write_report as _write_report
 
         cfg = req.config()

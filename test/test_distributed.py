@@ -112,7 +112,8 @@ def _contents(path: Path, keep=None) -> dict:
             g.visititems(lambda k, v: arrays.__setitem__(k, v[()]) if isinstance(v, h5py.Dataset) else None)
             attrs = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in g.attrs.items() if k != "timings"}
             out[idx] = (name, arrays, attrs)
-        out["mask"] = {k: [names[n.decode()] for n in f["mask"][k][()] if n.decode() in names] for k in f["mask"]}
+        masks = {k: [names[n.decode()] for n in f["mask"][k][()] if n.decode() in names] for k in f["mask"]}
+        out["mask"] = {k: v for k, v in masks.items() if v}  # a key whose demos were all cut off is not written
     return out
 
 

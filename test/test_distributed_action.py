@@ -53,4 +53,4 @@ def test_cancel_stops_every_worker_within_one_attempt(datagen, tmp_path):
     with h5py.File(res.dataset_path, "r") as d, h5py.File(res.failed_path, "r") as f:
         idx = sorted(int(g[n].attrs["index"]) for g in (d["data"], f["data"]) for n in g)
     assert len(idx) == len(set(idx)) == res.attempts, "every finished attempt once"
-    assert proc.alive(), "datagen keeps serving after a canceled distributed run"
+    assert proc.alive, "datagen keeps serving after a canceled distributed run"

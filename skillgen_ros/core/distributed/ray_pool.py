@@ -222,7 +222,7 @@ class RayPool:
 
     def close(self, timeout: float = 60.0) -> None:
         """Workers close their envs (a graph worker stops its graph), then the actors go."""
-        refs = [s.actor.close.remote() for s in self.slots if s.alive]
+        refs = [s.actor.close.remote() for s in self.slots if s.alive and s.probe is None and not s.retry_at]
         if refs:
             self._ray.wait(refs, num_returns=len(refs), timeout=timeout)
         for s in self.slots:

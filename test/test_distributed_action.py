@@ -54,3 +54,28 @@ def test_cancel_stops_every_worker_within_one_attempt(datagen, tmp_path):
         idx = sorted(int(g[n].attrs["index"]) for g in (d["data"], f["data"]) for n in g)
     assert len(idx) == len(set(idx)) == res.attempts, "every finished attempt once"
     assert proc.alive, "datagen keeps serving after a canceled distributed run"
+
+
+def test_graph_mode_workers_each_drive_their_own_graph_in_their_own_domain(tmp_path):
+    from skillgen_ros.core.dataset.hdf5 import validate_dataset
+    from skillgen_ros.core.distributed.ray_pool import RayPool
+    from skillgen_ros.core.distributed.run import run_distributed
+    from skillgen_ros.core.distributed.shards import pack_dir
+    from skillgen_ros.core.distributed.worker import WorkerSpec
+    from skillgen_ros.core.generation.session import RunRequest
+
+    req = RunRequest(task="Square", variant="D0", seed=3, attempts=4, video_attempts=0,
+                     output_dir=str(tmp_path / "g"), source_demos=str(REPO / "bags" / "Square"))
+    pool = RayPool(2, WorkerSpec(mode="graph", domain_ids=tuple(DOMAINS), startup_timeout=300.0), req,
+                   pack_dir(req.source_demos))
+    try:
+        domains = {s.worker: s.domain for s in pool.statuses(timeout=60)}
+        run = run_distributed(pool, req)
+    finally:
+        pool.close()
+    assert len(set(domains.values())) == 2 and set(domains.values()) <= set(DOMAINS), domains
+    assert sorted(r.index for r in run.results) == list(range(4)) and len(run.worker_attempts) == 2
+    for path in (run.dataset_path, run.failed_path):
+        validate_dataset(path)
+    with h5py.File(run.dataset_path) as d, h5py.File(run.failed_path) as f:
+        assert sorted(int(g[n].attrs["index"]) for g in (d["data"], f["data"]) for n in g) == list(range(4))

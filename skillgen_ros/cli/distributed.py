@@ -81,7 +81,8 @@ def run_distributed_cli(a, req) -> int:
         bar.set_postfix(success=f"{p.successes}/{p.attempts}", rate=f"{100 * p.rate:.0f}%", workers=len(statuses))
         if a.verbose:
             for s in statuses:
-                line = (f"{s.worker} pid {s.pid} on {s.host}: {s.total_attempts} attempts, {s.total_successes} "
+                line = (f"{s.worker} pid {s.pid} on {s.host}{f' domain {s.domain}' if s.domain >= 0 else ''}: "
+                        f"{s.total_attempts} attempts, {s.total_successes} "
                         f"successes, range {s.range or '-'}, last {s.last_reason or '-'}")
                 if shown.get(s.worker) != line:
                     shown[s.worker] = line

@@ -45,6 +45,7 @@ class WorkerStatus:
     total_attempts: int  # over the whole run, this worker process
     total_successes: int
     last_reason: str
+    domain: int = -1  # graph mode: the ROS_DOMAIN_ID of the worker's graph
 
 
 class InProcessRunner:
@@ -114,8 +115,9 @@ class RangeWorker:
         import socket
 
         with self._lock:
+            lease = getattr(self.runner, "lease", None)
             return WorkerStatus(self.worker, os.getpid(), socket.gethostname(), self._range, self._done,
-                                self._succ, self._tot, self._tot_succ, self._last)
+                                self._succ, self._tot, self._tot_succ, self._last, lease.id if lease else -1)
 
     def _progress(self, p: Progress) -> None:
         with self._lock:

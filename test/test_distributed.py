@@ -52,6 +52,15 @@ def test_scheduler_target_successes_keeps_the_lowest_indices():
     assert s.cutoff() == 3 and s.kept() == [0, 1, 2, 3]  # as a serial run stops at its 2nd success
 
 
+def test_nothing_imports_ray_until_a_run_asks_for_workers():
+    code = ("import sys, skillgen_ros.cli.generate, skillgen_ros.cli.deploy, skillgen_ros.cli.distributed, "
+            "skillgen_ros.core.distributed.run, skillgen_ros.core.distributed.worker, skillgen_ros.nodes.datagen; "
+            "print(sorted(m for m in sys.modules if m == 'ray' or m.startswith('ray.')))")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                       env={**os.environ, "PYTHONPATH": str(REPO)}, cwd=REPO)
+    assert p.returncode == 0 and p.stdout.strip().splitlines()[-1] == "[]", p.stdout + p.stderr
+
+
 # -- Ray
 @pytest.fixture(scope="module")
 def ray_local():

@@ -37,6 +37,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--output", default="", help="directory for results.json and the bags (default out/deploy_...)")
     p.add_argument("--no-bag", action="store_true", help="graph mode: do not record the rollouts")
     p.add_argument("--in-process", action="store_true", help="run without the ROS graph")
+    p.add_argument("--workers", type=int, default=1,
+                   help="in-process: spread the rollouts over N Ray workers (docs/distributed.md)")
+    p.add_argument("--address", default="", help="with --workers: join this Ray cluster (auto, host:port, ray://...)")
     p.add_argument("--device", default="cpu", help="in-process: torch device")
     p.add_argument("--perception", default="ground_truth", choices=["ground_truth", "estimate"],
                    help="in-process only; the graph uses its perception node's mode")
@@ -167,9 +170,16 @@ def run_in_process(a) -> int:
     def show(i, r):
         print(f"rollout {i}: {r.reason.value} after {r.steps} steps ({r.message})", flush=True)
 
-    s = evaluate(a.checkpoint, a.task, a.variant, a.mode, a.rollouts, a.seed, device=a.device,
-                 perception=a.perception, on_rollout=show, first_index=a.first_rollout,
-                 **({"config": _config(a)} if a.max_steps else {}))
+    if a.workers > 1 or a.address:
+        from skillgen_ros.core.distributed.evaluate import evaluate_distributed
+
+        s = evaluate_distributed(a.checkpoint, a.task, a.variant, a.mode, a.rollouts, a.seed, workers=a.workers,
+                                 address=a.address, first_index=a.first_rollout, perception=a.perception,
+                                 on_range=lambda i, e: [show(i + k, r) for k, r in enumerate(e.results)])
+    else:
+        s = evaluate(a.checkpoint, a.task, a.variant, a.mode, a.rollouts, a.seed, device=a.device,
+                     perception=a.perception, on_rollout=show, first_index=a.first_rollout,
+                     **({"config": _config(a)} if a.max_steps else {}))
     _report(s, _output(a), {"path": "in-process"})
     return 0
 

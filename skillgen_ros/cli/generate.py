@@ -4,6 +4,7 @@
     skillgen generate --task Square --variant D2 --method mimicgen --attempts 200 --seed 3
     skillgen generate --profile paper       the paper's Algorithm 1 (see core/generation/profile.py)
     skillgen generate --in-process          same algorithm, no ROS graph (SimGenerationEnv)
+    skillgen generate --workers 4           the same run on 4 Ray workers (docs/distributed.md)
 
 First, before any node starts, `preflight` checks what can be checked here: task, variant,
 method, selection, profile, output dir, and that the source demos load with valid annotations;
@@ -66,7 +67,18 @@ def _parser() -> argparse.ArgumentParser:
                    help="seconds to wait for the graph's datagen node to answer")
     p.add_argument("--verbose", action="store_true",
                    help="stream every node's output here (default: <output>/logs/<node>.log; only warnings, "
-                        "errors, the progress bar and the summary here)")
+                        "errors, the progress bar and the summary here); with --workers, each worker's status")
+    d = p.add_argument_group("distributed (docs/distributed.md)")
+    d.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="run the attempts on N Ray workers (in-process envs with --in-process, else one node "
+                        "graph per worker in its own ROS_DOMAIN_ID); 1 = this process")
+    d.add_argument("--address", default="", metavar="ADDR",
+                   help="join a Ray cluster: auto, host:port or ray://host:port (default: a local instance)")
+    d.add_argument("--resume", action="store_true",
+                   help="continue the interrupted distributed run in --output; finished indices are not re-run")
+    d.add_argument("--dashboard", action="store_true", help="start Ray's dashboard (127.0.0.1:8265)")
+    d.add_argument("--domain-ids", default="", metavar="A-B",
+                   help="graph workers lease their ROS_DOMAIN_IDs from these (default 1-101)")
     return p
 
 
@@ -104,6 +116,7 @@ def _print_result(attempts, successes, failures: dict, paths: dict) -> None:
 
 
 def _request(a):
+    """The command line as a RunRequest (in-process and distributed runs)."""
     from skillgen_ros.core.generation.session import RunRequest
 
     return RunRequest(task=a.task, variant=a.variant, method=a.method, attempts=a.attempts,
@@ -215,6 +228,10 @@ def run_graph(a) -> int:
 def main(argv: list[str]) -> int:
     a = _parser().parse_args(argv)
     try:
+        if a.workers > 1 or a.address or a.resume:
+            from skillgen_ros.cli.distributed import run_distributed_cli
+
+            return run_distributed_cli(a, _request(a))
         return run_in_process(a) if a.in_process else run_graph(a)
     except SkillGenError as e:
         print(str(e), file=sys.stderr)

@@ -39,6 +39,7 @@ from skillgen_ros.core.skills.augmentation import MAX_TRANSLATION, AugmentationC
 from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
 from skillgen_ros.core.tasks import TASK_NAMES, get_task
 from skillgen_ros.core.tasks.spec import MAX_SEED
+from skillgen_ros.nodes import datagen_pool
 from skillgen_ros.nodes.graph_env import RosGraphEnv
 from skillgen_ros.nodes.runtime import run_node
 
@@ -64,6 +65,7 @@ class DatagenNode(Node):
         self.declare_parameter("driver_node", "sim_driver")
         for k, v in TIMEOUTS.items():
             self.declare_parameter(f"timeout_{k}", v)
+        datagen_pool.declare(self)
         src = str(self.get_parameter("collision_source").value)
         if src not in ("point_cloud", "scene"):
             raise ParameterError(f"collision_source must be point_cloud or scene, got {src!r}")
@@ -174,12 +176,16 @@ class DatagenNode(Node):
         res = Generate.Result()
         try:
             req = self._request(g)
-            validate_request(req, TASK_NAMES)
+            distributed = datagen_pool.is_distributed(g)
+            validate_request(req, TASK_NAMES, check_output=not getattr(g, "resume", False))
             demos = self._demos(req)
-            missing = self.env.wait_ready(float(self.get_parameter("timeout_state").value) * 3)
-            if missing:
-                raise SkillGenError(f"not available: {', '.join(missing)}", reason="GRAPH_NOT_READY")
-            self.env.load_demos(req.task)  # outside the attempts' time, and a clear early error
+            if distributed:  # Ray workers run the attempts: this node's graph is not needed
+                datagen_pool.check_goal(self, g)
+            else:
+                missing = self.env.wait_ready(float(self.get_parameter("timeout_state").value) * 3)
+                if missing:
+                    raise SkillGenError(f"not available: {', '.join(missing)}", reason="GRAPH_NOT_READY")
+                self.env.load_demos(req.task)  # outside the attempts' time, and a clear early error
         except SkillGenError as e:
             res.accepted, res.reason, res.message = False, e.reason, str(e.args[0])
             # the client gets the reason in the result and reports it; an ERROR here would show twice on
@@ -193,7 +199,7 @@ class DatagenNode(Node):
             goal_handle.abort()
             return res
         res.accepted = True
-        bag = self._start_bag(req) if g.record_bag else ""
+        bag = self._start_bag(req) if g.record_bag and not distributed else ""
 
         def progress(p):
             fb = Generate.Feedback(attempts=p.attempts, successes=p.successes, success_rate=p.rate,
@@ -211,8 +217,11 @@ class DatagenNode(Node):
                 self._recorder_call(self.rec_resume if window[0] <= k < window[1] else self.rec_pause)
 
         try:
-            run = run_generation(self.env, demos, get_task(req.task), req, on_progress=progress, should_stop=stop,
-                                 before_attempt=before_attempt)
+            if distributed:
+                run = datagen_pool.run_goal(self, goal_handle, req, self.env.demos_dir)
+            else:
+                run = run_generation(self.env, demos, get_task(req.task), req, on_progress=progress,
+                                     should_stop=stop, before_attempt=before_attempt)
             res.reason = run.stopped_early or "OK"
             res.message = f"{run.successes}/{run.attempts} attempts succeeded"
         except SkillGenError as e:  # a request-level failure mid-run: partial dataset stays valid

@@ -276,9 +276,11 @@ def read_episode(path: str, demo: str) -> tuple[Episode, dict]:
     return ep, attrs
 
 
-def merge_datasets(inputs: Sequence[str], output: str, mode: str = "create") -> DatasetSummary:
+def merge_datasets(inputs: Sequence[str], output: str, mode: str = "create", keep=None,
+                   unique: bool = False) -> DatasetSummary:
     """Merge shards into one file, demos ordered by their attempt index (as one run would write
-    them), filter keys carried over. env_args come from the first shard."""
+    them), filter keys carried over. env_args come from the first shard. keep(index) -> bool
+    selects demos; unique=True refuses an attempt index found twice (DUPLICATE_INDEX)."""
     entries = []
     env_args = None
     for p in inputs:
@@ -291,8 +293,17 @@ def merge_datasets(inputs: Sequence[str], output: str, mode: str = "create") -> 
                     keys_of.setdefault(n.decode(), []).append(k)
             for name in f["data"]:
                 idx = int(f["data"][name].attrs.get("index", -1))
+                if keep is not None and not keep(idx):
+                    continue
                 entries.append((idx, p, name, sorted(keys_of.get(name, []))))
     entries.sort(key=lambda e: (e[0], e[1], int(e[2][5:])))
+    if unique:
+        from collections import Counter
+
+        dup = sorted(i for i, n in Counter(e[0] for e in entries).items() if n > 1)
+        if dup:
+            raise DatasetError(f"attempt indices {dup[:5]} appear more than once in {list(inputs)}",
+                               reason="DUPLICATE_INDEX")
     with DatasetWriter(output, env_args or {}, mode, allow_empty=True) as w:
         for _, p, name, keys in entries:
             ep, attrs = read_episode(p, name)

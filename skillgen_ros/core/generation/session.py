@@ -70,8 +70,9 @@ class RunRequest:
                                 observation_source=self.observation_source)
 
 
-def validate_request(req: RunRequest, known_tasks: Sequence[str]) -> None:
-    """Raise a SkillGenError with a reason code for anything wrong with the request itself."""
+def validate_request(req: RunRequest, known_tasks: Sequence[str], check_output: bool = True) -> None:
+    """Raise a SkillGenError with a reason code for anything wrong with the request itself
+    (check_output=False: a resumed distributed run, whose output dir holds its data already)."""
     if req.task not in known_tasks:
         raise UnknownTaskError(f"unknown task {req.task!r}; known: {', '.join(known_tasks)}")
     if req.method not in METHODS:
@@ -85,7 +86,8 @@ def validate_request(req: RunRequest, known_tasks: Sequence[str]) -> None:
         raise InvalidInputError("seed and first_index must be >= 0", reason="INVALID_SEED")
     make_strategy(req.selection)  # raises for an unknown strategy
     req.config()  # raises for invalid noise / augmentation values
-    check_output_dir(req.output_dir)
+    if check_output:
+        check_output_dir(req.output_dir)
 
 
 def check_output_dir(path: str) -> None:

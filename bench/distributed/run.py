@@ -1,0 +1,185 @@
+"""Distributed generation benchmark (issue 21; not in the test suite).
+
+Scaling: the same request (task, variant, seed, attempts) on 1 and on 2 Ray workers, in-process and
+in graph mode (each worker its own node graph in its own ROS_DOMAIN_ID, perception estimating
+poses). Reported per cell: attempts/hour and demos/hour (wall time of the run, workers already
+up), demos/hour/core, efficiency at N workers = rate(N) / (N * rate(1)), and Ray's overhead per
+attempt (driver round trip of a range minus the worker's own time for it, per attempt, as a share
+of an attempt's time). On a 2-core machine shared with other work, 1 vs 2 workers is all that can
+be measured, and efficiency there also counts the other load.
+
+Cluster check (--cluster N): a simulated N-node cluster on this machine (ray.cluster_utils.Cluster,
+one CPU per node), one node killed after a third of the attempts; the run must still hold each
+index exactly once, with the dataset identical to a serial run of the same request.
+
+Each finished cell is written to bench/results/distributed.json at once with the command that
+reruns it; a rerun skips cells already there (--force reruns).
+
+    python bench/distributed/run.py --attempts 16 --modes in_process graph --workers 1 2
+    python bench/distributed/run.py --cluster 3 --attempts 300
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
+os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")  # loopback only (ray_pool.connect)
+
+from bench.machine import machine_info  # noqa: E402
+from skillgen_ros.core.distributed.run import run_distributed  # noqa: E402
+from skillgen_ros.core.distributed.shards import pack_dir  # noqa: E402
+from skillgen_ros.core.distributed.worker import WorkerSpec  # noqa: E402
+from skillgen_ros.core.generation.session import RunRequest  # noqa: E402
+
+OUT = ROOT / "bench" / "results" / "distributed.json"
+
+
+def _request(a, out: str) -> RunRequest:
+    return RunRequest(task=a.task, variant=a.variant, seed=a.seed, attempts=a.attempts, video_attempts=0,
+                      output_dir=out, source_demos=str(ROOT / "bags" / a.task))
+
+
+def scaling_cell(a, mode: str, workers: int) -> dict:
+    from skillgen_ros.core.distributed.ray_pool import RayPool
+
+    tmp = tempfile.mkdtemp(prefix="bench_distributed_")
+    req = _request(a, os.path.join(tmp, "run"))
+    spec = WorkerSpec(mode=mode, perception=a.perception, domain_ids=tuple(range(*a.domains)),
+                      startup_timeout=300.0)
+    t_up = time.perf_counter()
+    pool = RayPool(workers, spec, req, pack_dir(req.source_demos))
+    up = time.perf_counter() - t_up
+    try:
+        run = run_distributed(pool, req, write_report=False)
+    finally:
+        pool.close()
+        shutil.rmtree(tmp, ignore_errors=True)
+    per_attempt = run.attempt_seconds / max(run.attempts, 1)
+    overhead = sum(run.overhead_seconds) / max(run.attempts, 1)
+    return {"mode": mode, "workers": workers, "attempts": run.attempts, "successes": run.successes,
+            "wall_s": round(run.wall_seconds, 2), "startup_s": round(up, 2),
+            "attempts_per_hour": round(3600 * run.attempts / run.wall_seconds, 1),
+            "demos_per_hour": round(3600 * run.successes / run.wall_seconds, 1),
+            "demos_per_hour_per_core": round(3600 * run.successes / run.wall_seconds / min(workers, os.cpu_count()), 1),
+            "attempt_s_mean": round(per_attempt, 3), "ray_overhead_s_per_attempt": round(overhead, 4),
+            "ray_overhead_share": round(overhead / per_attempt, 4) if per_attempt else None,
+            "worker_attempts": run.worker_attempts}
+
+
+def cluster_cell(a) -> dict:
+    """N simulated nodes, one killed mid-run: exactly-once and identical to serial."""
+    import ray
+    from ray.cluster_utils import Cluster
+
+    from skillgen_ros.core.distributed.ray_pool import RayPool
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
+    nodes = [cluster.add_node(num_cpus=1) for _ in range(a.cluster - 1)]
+    ray.init(address=cluster.address, include_dashboard=False, log_to_driver=False)
+    tmp = tempfile.mkdtemp(prefix="bench_cluster_")
+    req = _request(a, os.path.join(tmp, "run"))
+    pool = RayPool(a.cluster, WorkerSpec(mode="in_process", perception=a.perception), req,
+                   pack_dir(req.source_demos))
+    killed = []
+
+    def kill_a_node(p, _st):
+        if not killed and p.attempts >= a.attempts // 3:
+            cluster.remove_node(nodes[-1], allow_graceful=False)
+            killed.append(p.attempts)
+
+    try:
+        run = run_distributed(pool, req, on_progress=kill_a_node, write_report=False)
+    finally:
+        pool.close()
+        ray.shutdown()
+        cluster.shutdown()
+    same = _same_as_serial(a, req, tmp) if a.compare_serial else None
+    shutil.rmtree(tmp, ignore_errors=True)
+    return {"nodes": a.cluster, "attempts": run.attempts, "indices_once": sorted(r.index for r in run.results)
+            == list(range(a.attempts)), "node_killed_at_attempt": killed[0] if killed else None,
+            "lost_ranges": run.lost_ranges, "identical_to_serial": same, "wall_s": round(run.wall_seconds, 1)}
+
+
+def _same_as_serial(a, req, tmp) -> bool:
+    import dataclasses
+
+    import h5py
+    import numpy as np
+
+    from skillgen_ros.core.generation.session import run_generation
+    from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
+    from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
+    from skillgen_ros.core.tasks import get_task
+
+    task = get_task(a.task)
+    env = SimGenerationEnv(SimEnvConfig(perception=a.perception, seed=a.seed, video=False))
+    ser = dataclasses.replace(req, output_dir=os.path.join(tmp, "serial"))
+    run_generation(env, load_source_demos(expand_bag_paths([req.source_demos]), task), task, ser, write_report=False)
+    env.close()
+    for name in ("demo.hdf5", "failed.hdf5"):
+        with h5py.File(os.path.join(req.output_dir, name)) as x, h5py.File(os.path.join(ser.output_dir, name)) as y:
+            ax, ay = {}, {}
+            x.visititems(lambda k, v: ax.__setitem__(k, v[()]) if isinstance(v, h5py.Dataset) else None)
+            y.visititems(lambda k, v: ay.__setitem__(k, v[()]) if isinstance(v, h5py.Dataset) else None)
+            if sorted(ax) != sorted(ay) or not all(np.array_equal(ax[k], ay[k]) for k in ax):
+                return False
+    return True
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--task", default="Square")
+    ap.add_argument("--variant", default="D0")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--attempts", type=int, default=16)
+    ap.add_argument("--modes", nargs="+", default=["in_process", "graph"])
+    ap.add_argument("--workers", nargs="+", type=int, default=[1, 2])
+    ap.add_argument("--perception", default="estimate", choices=["estimate", "ground_truth"])
+    ap.add_argument("--domains", nargs=2, type=int, default=[160, 200], help="graph workers' ROS domain ids [lo, hi)")
+    ap.add_argument("--cluster", type=int, default=0, help="run the N-node cluster check instead")
+    ap.add_argument("--compare-serial", action="store_true", help="cluster check: also run serially and compare")
+    ap.add_argument("--force", action="store_true")
+    ap.add_argument("--out", default=str(OUT))
+    a = ap.parse_args(argv)
+    rerun = " ".join(["python", "bench/distributed/run.py", *(sys.argv[1:] if argv is None else argv)])
+    out = json.loads(Path(a.out).read_text()) if Path(a.out).exists() else {"benchmark": "distributed", "cells": {}}
+    out["machine"] = machine_info()
+
+    def save(key, cell):
+        cell.update(rerun=rerun, measured=time.strftime("%Y-%m-%d"), task=a.task, variant=a.variant, seed=a.seed,
+                    perception=a.perception)
+        out["cells"][key] = cell
+        Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(a.out).write_text(json.dumps(out, indent=1, sort_keys=True))
+        print(key, json.dumps(cell), flush=True)
+
+    if a.cluster:
+        key = f"cluster{a.cluster}/{a.task}/{a.variant}/n{a.attempts}"
+        if a.force or key not in out["cells"]:
+            save(key, cluster_cell(a))
+        return 0
+    for mode in a.modes:
+        for w in a.workers:
+            key = f"{mode}/w{w}/{a.task}/{a.variant}/{a.perception}/n{a.attempts}"
+            if a.force or key not in out["cells"]:
+                save(key, scaling_cell(a, mode, w))
+    for mode in a.modes:  # efficiency at each N against the same mode's 1 worker
+        base = out["cells"].get(f"{mode}/w1/{a.task}/{a.variant}/{a.perception}/n{a.attempts}")
+        for w in a.workers:
+            c = out["cells"].get(f"{mode}/w{w}/{a.task}/{a.variant}/{a.perception}/n{a.attempts}")
+            if base and c and w > 1:
+                c["efficiency"] = round(c["attempts_per_hour"] / (w * base["attempts_per_hour"]), 3)
+    Path(a.out).write_text(json.dumps(out, indent=1, sort_keys=True))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

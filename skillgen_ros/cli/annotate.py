@@ -52,6 +52,15 @@ def _task_rules(task: str) -> dict:
         return {"skills": {0: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, "needle", "handle")},
                            1: {"start_distance": 0.19, "end_event": "demo_end",
                                "offset": _kp(task, "tripod", "ring_center")}}}
+    if task == "ThreePieceAssembly":
+        # grasps measured to the grasp point (the demonstrator's, 2 cm below a piece's top); insertions to the
+        # top of what the piece goes into (the base's top, piece 1's ridge) and ended as a nut placement, once
+        # the hand has backed off (piece 2's 16 cm stack is under the wrist right after the open)
+        grasp = lambda i, o: {i: {"start_distance": 0.05, "post_steps": 10,  # noqa
+                                  "offset": [a - b for a, b in zip(_kp(task, o, "top"), (0, 0, 0.02))]}}
+        insert = lambda i, o, d: {i: {"start_distance": d, "post_steps": 30, "offset": _kp(task, o, "top")}}  # noqa
+        return {"skills": {**grasp(0, "piece_1"), **insert(1, "base", 0.13),
+                           **grasp(2, "piece_2"), **insert(3, "piece_1", 0.16)}}
     return {}
 
 

@@ -48,7 +48,7 @@ sys.path.insert(0, str(ROOT))
 from bench.datagen.summary import PROFILE_FREE, cell_key, summarize  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
-TASKS = ("Square", "PickPlace", "NutAssembly", "Threading")
+from skillgen_ros.core.tasks import TASK_NAMES as TASKS  # noqa: E402  (the one task list)
 METHODS = [("skillgen", False), ("mimicgen", False), ("skillgen", True)]
 PROFILES = ("paper", "skillgen_ros")
 

@@ -1,4 +1,4 @@
-"""Bags any rosbag2 reader opens: complete v9 QoS, `skillgen bag reindex`, and the 40 shipped bags.
+"""Bags any rosbag2 reader opens: complete v9 QoS, `skillgen bag reindex`, and every shipped bag (10 per task).
 
 rosbags' AnyReader (like rosbag2's own YAML reader) needs all nine keys of every offered QoS
 profile (issue 19: the first shipped bags lacked deadline, lifespan, liveliness, ...).
@@ -38,8 +38,10 @@ def _qos_lists(bag: Path) -> list[list[dict]]:
     return [t["topic_metadata"]["offered_qos_profiles"] for t in meta["topics_with_message_count"]]
 
 
-def test_forty_shipped_bags_open_in_rosbags_with_complete_qos():
-    assert len(SHIPPED) == 40
+def test_every_shipped_bag_opens_in_rosbags_with_complete_qos():
+    from skillgen_ros.core.tasks import TASK_NAMES
+
+    assert len(SHIPPED) == 10 * len(TASK_NAMES)
     for bag in SHIPPED:
         for profiles in _qos_lists(bag):
             assert profiles and all(list(p) == list(PROFILE_KEYS) for p in profiles), bag

@@ -158,6 +158,23 @@ def _check_session_bag(bag: Path) -> None:
     assert {m.data for m in got["/run/stage"]} >= {"motion", "skill"}
 
 
+def test_a_three_piece_assembly_attempt_runs_through_the_graph(graph, tmp_path):
+    """The 4-skill task with three free objects: estimated poses, point-cloud collisions, the paper profile.
+    Success is not required; the attempt is recorded (demo.hdf5 or failed.hdf5) with its HSP labels."""
+    _, procs, client = graph
+    res = _run(client, task="ThreePieceAssembly", attempts=1, seed=0, profile="paper", output_dir=str(tmp_path / "tpa"))
+    assert res.accepted and res.reason == "OK", res.message
+    assert res.attempts == 1
+    path = res.dataset_path if res.successes else res.failed_path
+    with h5py.File(path, "r") as f:
+        demo = f["data"][sorted(f["data"].keys())[0]]
+        for key in ("obs/base_pose", "obs/piece_1_pose", "obs/piece_2_pose", "labels/mp_step", "labels/skill_index",
+                    "actions"):
+            assert key in demo, key
+        assert set(np.unique(demo["labels/skill_index"][:])) - {-1} <= {0, 1, 2, 3}
+    assert all(p.proc.poll() is None for p in procs.values())
+
+
 def test_skill_replay_loads_demos_ahead_and_says_why_not(graph, tmp_path):
     from skillgen_interfaces.srv import LoadDemos
 

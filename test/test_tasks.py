@@ -17,9 +17,9 @@ CASES = [(t, v) for t in TASK_NAMES for v in get_task(t).variants]
 
 
 def test_registry_and_skills():
-    assert set(TASK_NAMES) == {"Square", "PickPlace", "NutAssembly", "Threading"}
+    assert set(TASK_NAMES) == {"Square", "PickPlace", "NutAssembly", "Threading", "ThreePieceAssembly"}
     assert {t: len(get_task(t).skills) for t in TASK_NAMES} == {"Square": 2, "PickPlace": 2, "NutAssembly": 4,
-                                                                 "Threading": 2}
+                                                                 "Threading": 2, "ThreePieceAssembly": 4}
     assert get_task("Square").variants == ("D0", "D1", "D2", "D1_clutter", "D2_clutter")  # the paper's
     assert "clutter" in get_task("PickPlace").variants  # ours (PickPlace is not a paper task)
     assert not any("clutter" in v for v in get_task("Threading").variants + get_task("NutAssembly").variants)

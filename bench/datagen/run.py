@@ -16,6 +16,9 @@ Smoke (minutes): two cells, both profiles, all methods, into its own JSON:
         --skip-extras --out bench/results/datagen_smoke.json
 Only some cells again (the others and the extras stay as they are in the JSON):
     .venv/bin/python bench/datagen/run.py --attempts 200 --workers 2 --methods skillgen+IA --profiles paper --force
+A new task's smoke (ThreePieceAssembly, 20 attempts a cell, paper profile) into its own JSON:
+    .venv/bin/python bench/datagen/run.py --attempts 20 --workers 2 --tasks ThreePieceAssembly \
+        --methods skillgen mimicgen --profiles paper --skip-extras --out bench/results/datagen_smoke_three_piece.json
 One extra part again, updating the JSON in place (e.g. the graph overhead: 3 pairs of 50 attempts):
     .venv/bin/python bench/datagen/run.py --only graph_overhead
 The D0 cells on other seeds, each into its own JSON (a check that a cell's gap to the paper is not noise):
@@ -48,7 +51,7 @@ sys.path.insert(0, str(ROOT))
 from bench.datagen.summary import PROFILE_FREE, cell_key, summarize  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
-TASKS = ("Square", "PickPlace", "NutAssembly", "Threading")
+from skillgen_ros.core.tasks import TASK_NAMES as TASKS  # noqa: E402  (the one task list)
 METHODS = [("skillgen", False), ("mimicgen", False), ("skillgen", True)]
 PROFILES = ("paper", "skillgen_ros")
 

@@ -223,7 +223,9 @@ def main(argv=None) -> int:
     p.add_argument("--work", default="out/bench_hsp", help="datasets and checkpoints (not in git)")
     p.add_argument("--out", default=str(ROOT / "bench" / "results" / "hsp.json"))
     a = p.parse_args(argv)
-    unknown = [c for c in a.cells if c.split("/")[0] not in ("Square", "Threading", "NutAssembly", "PickPlace")]
+    from skillgen_ros.core.tasks import TASK_NAMES
+
+    unknown = [c for c in a.cells if c.split("/")[0] not in TASK_NAMES]
     if unknown:
         p.error(f"unknown cells {unknown}; e.g. {CELLS[0]}")
     Path(a.work).mkdir(parents=True, exist_ok=True)

@@ -6,11 +6,15 @@ collision check) for the EE poses a top-down solution needs:
   handle / carton top), reachable if one yaw reaches both;
 - place: the object at its goal through that grasp: a nut's ring 5 cm above its peg top and at the
   release height (any of the peg's symmetric nut yaws), the milk 8 cm above the bin floor and at the
-  drop height, the needle tip 5 cm before the ring and its shaft centre at the ring (either direction).
+  drop height, the needle tip 5 cm before the ring and its shaft centre at the ring (either direction),
+  a Three Piece Assembly piece 4 cm above its seat and at the release height (piece 1 in the base at any
+  of the base's four yaws; piece 2 on piece 1 seated in the base, the same four yaws).
 A sample counts as reachable if every skill has a reachable option. This is the arm's kinematics
 only: the physics may still fail (see bench/datagen), and it says nothing about the path.
 
-    python bench/reachability/run.py [--samples 200] [--out bench/results/reachability.json]
+    python bench/reachability/run.py [--samples 200] [--tasks ThreePieceAssembly] [--out bench/results/reachability.json]
+
+With --tasks, the other tasks' rows already in --out are kept.
 """
 from __future__ import annotations
 
@@ -37,11 +41,14 @@ from skillgen_ros.core.planning.kinematics import PandaKinematics  # noqa: E402
 from skillgen_ros.core.robot import Q_HOME, TABLE_Z  # noqa: E402
 from skillgen_ros.core.tasks import TASK_NAMES, get_task  # noqa: E402
 from skillgen_ros.core.tasks.scripted import ScriptParams, top_down  # noqa: E402
+from skillgen_ros.core.demonstrator.human_like import PIECE_DROP, PIECE_GRASP_DEPTH  # noqa: E402
 
 PRM = ScriptParams()
 PAIRS = {"Square": [("square_nut", "square_peg")], "NutAssembly": [("square_nut", "square_peg"),
                                                                    ("round_nut", "round_peg")],
-         "PickPlace": [("milk", "bin")], "Threading": [("needle", "tripod")]}
+         "PickPlace": [("milk", "bin")], "Threading": [("needle", "tripod")],
+         "ThreePieceAssembly": [("piece_1", "base"), ("piece_2", "piece_1")]}
+PIECE_PERIOD = {"piece_1": np.pi, "piece_2": np.pi / 2}   # the ridge; the square knob
 
 
 class Reach:
@@ -59,12 +66,15 @@ def _yaw(pose: Pose) -> float:
 
 def grasp_options(obj, pose: Pose) -> list[Pose]:
     """Top-down grasps at the handle (period pi) or 2.5 cm below the carton top (period pi / 2)."""
-    if obj.type == "milk":
+    y0 = _yaw(pose)
+    if obj.id in PIECE_PERIOD:   # across the piece's x, PIECE_GRASP_DEPTH below its top (the demonstrator's)
+        point, period = pose.position + [0.0, 0.0, obj.half_extents[2] - PIECE_GRASP_DEPTH], PIECE_PERIOD[obj.id]
+        y0 += np.pi / 2
+    elif obj.type == "milk":
         point, period = pose.position + [0.0, 0.0, obj.half_extents[2] - PRM.milk_grasp_depth], np.pi / 2
     else:
         point = pose.rotation.apply(obj.keypoint("handle")) + pose.position + [0.0, 0.0, PRM.grasp_z_offset]
         period = np.pi
-    y0 = _yaw(pose)
     return [top_down(point, y0 + k * period) for k in range(int(round(2 * np.pi / period)))
             if abs(((y0 + k * period + np.pi) % (2 * np.pi)) - np.pi) <= np.radians(170)]
 
@@ -72,6 +82,12 @@ def grasp_options(obj, pose: Pose) -> list[Pose]:
 def object_goals(task, obj, target, poses) -> list[list[Pose]]:
     """Per admissible goal yaw, the object poses along the place / insert motion."""
     tp = poses[target.id]
+    if obj.id in PIECE_PERIOD:
+        base = task.object("base")
+        bp = poses["base"]
+        seat = TABLE_Z + (obj.half_extents[2] if obj.id == "piece_1" else 2 * base.half_extents[2] + obj.half_extents[2])
+        return [[Pose(np.r_[bp.position[:2], z], Rotation.from_euler("z", _yaw(bp) + k * np.pi / 2).as_quat())
+                 for z in (seat + 0.04, seat + PIECE_DROP)] for k in range(4)]
     if obj.type in ("square_nut", "round_nut"):
         top = tp.position[2] + target.half_extents[2]
         ring_local = obj.keypoint("ring_center")
@@ -124,8 +140,10 @@ def main() -> int:
     ap.add_argument("--out", default=str(REPO / "bench/results/reachability.json"))
     a = ap.parse_args()
     reach = Reach()
-    cells = []
-    for name in a.tasks.split(","):
+    names = a.tasks.split(",")
+    old = json.loads(Path(a.out).read_text())["cells"] if Path(a.out).exists() else []
+    cells = [c for c in old if c["task"] not in names and c["task"] in TASK_NAMES]
+    for name in names:
         task = get_task(name)
         for v in task.variants:
             rows = [sample_reachable(reach, task, task.sample_reset(v, np.random.default_rng(s)))

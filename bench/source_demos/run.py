@@ -7,7 +7,8 @@ Baseline, same run: the same command streams replayed in a *different* D0 scene 
 i.e. plain open-loop replay without SkillGen's object-centric adaptation.
 
     python bench/source_demos/run.py [--quick] [--bags bags] [--out bench/results/source_demos.json]
---quick replays the 3-demo subset of each task only.
+--quick replays the 3-demo subset of each task only; --tasks T [T ...] replays only those tasks and keeps
+the other tasks' results already in --out.
 """
 from __future__ import annotations
 
@@ -42,11 +43,13 @@ def main() -> int:
     ap.add_argument("--quick", action="store_true", help="only the 3-demo subset per task")
     ap.add_argument("--bags", default=str(REPO / "bags"))
     ap.add_argument("--out", default=str(REPO / "bench/results/source_demos.json"))
+    ap.add_argument("--tasks", nargs="+", default=list(TASK_NAMES), choices=TASK_NAMES)
     a = ap.parse_args()
     world = SimWorld()
-    results = {}
+    old = json.loads(Path(a.out).read_text()).get("tasks", {}) if Path(a.out).exists() else {}
+    results = {t: r for t, r in old.items() if t not in a.tasks and t in TASK_NAMES}
     t_all = time.monotonic()
-    for task in TASK_NAMES:
+    for task in a.tasks:
         paths = subset_paths(Path(a.bags) / task, "first3" if a.quick else "all")
         rows = []
         for path in paths:
@@ -68,7 +71,8 @@ def main() -> int:
                          "baseline_other_scene_successes": base, "baseline_rate": base / n,
                          "ratio_vs_baseline": (succ / base) if base else None, "per_demo": rows}
         print(f"{task}: {succ}/{n} open-loop replays succeed (baseline, other scene: {base}/{n})")
-    doc = {"benchmark": "source_demos", "command": "python bench/source_demos/run.py" + (" --quick" if a.quick else ""),
+    doc = {"benchmark": "source_demos", "command": "python bench/source_demos/run.py" + (" --quick" if a.quick else "")
+           + ("" if list(a.tasks) == list(TASK_NAMES) else " --tasks " + " ".join(a.tasks)),
            "what": "open-loop replay of the shipped source demos from their recorded initial scenes (pybullet)",
            "machine": machine_info(),
            "wall_s": round(time.monotonic() - t_all, 1), "tasks": results}

@@ -52,6 +52,13 @@ def _task_rules(task: str) -> dict:
     if task == "Threading":
         return {"skills": {0: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, 0)},
                            1: {"start_distance": 0.19, "end_event": "demo_end", "offset": _kp(task, 1)}}}
+    if task == "ThreePieceAssembly":
+        # grasps measured to the grasp point (the demonstrator's, 2 cm below a piece's top); insertions to the
+        # top of what the piece goes into (the base's top, piece 1's ridge) and ended as a nut placement, once
+        # the hand has backed off (piece 2's 16 cm stack is under the wrist right after the open)
+        grasp = lambda i: {i: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, i)}}  # noqa
+        insert = lambda i, d: {i: {"start_distance": d, "post_steps": 30, "offset": _kp(task, i)}}  # noqa
+        return {"skills": {**grasp(0), **insert(1, 0.13), **grasp(2), **insert(3, 0.16)}}
     return {}
 
 

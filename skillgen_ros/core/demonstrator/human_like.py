@@ -26,6 +26,12 @@ from .record import DemoRollout, DemoStep
 CONTROL_HZ = 20.0
 NOMINAL = ScriptParams()  # the privileged solver's grasp / place geometry; the person varies around it
 OPEN, CLOSED = -1.0, 1.0
+# Three Piece Assembly: grasp this far below a piece's top (the middle of piece 2's 4 cm knob, the top of
+# piece 1's ridge); carry at this height above the table (piece 2 hangs 14 cm below the hand over the 10 cm
+# piece 1); release this far above the seat
+PIECE_GRASP_DEPTH = 0.02
+PIECE_TRAVEL = 0.30
+PIECE_DROP = 0.008
 
 
 class ScriptedDemonstrator:
@@ -230,8 +236,48 @@ class ScriptedDemonstrator:
         self.carry_object_to(world, "needle", through, T_en, 1.2, tremor=0.1)
         self.hold(world, 0.5)
 
+    def _grasp_piece(self, world, oid: str, period: float) -> None:
+        """Top-down across the piece's object x (piece 1's ridge, piece 2's knob), PIECE_GRASP_DEPTH below its top."""
+        spec = self.task.object(oid)
+        yaw = object_yaw(self.frames(world)[oid]) + np.pi / 2
+        self.grasp_from_top(world, oid, spec.keypoint("top"), yaw, period,
+                            depth=PIECE_GRASP_DEPTH + self.rng.uniform(-0.002, 0.002))
+
+    def _insert_piece(self, world, oid: str, target_id: str, period: float, seat_z: float) -> None:
+        """Carry the held piece high over target_id, turn it to the target's yaw (mod period), lower it
+        (looking again above the target) and let go PIECE_DROP above its seat (centre height seat_z)."""
+        self.lift(world, PIECE_TRAVEL + self.rng.uniform(0.0, 0.03))
+        T_ep = self.object_in_hand(world, oid)
+        cur, tgt = self.frames(world)[oid], self.frames(world)[target_id]
+        R = Rotation.from_euler("z", nearest_yaw(object_yaw(tgt), period, object_yaw(cur)))
+        aim = tgt.position[:2] + 0.5 * self.style.place_offset  # a careful aim: the slot has 3 mm a side
+
+        def at(z: float) -> Pose:
+            return Pose(np.r_[aim, z], R.as_quat())
+
+        high = at(cur.position[2])
+        self.carry_object_to(world, oid, high, T_ep, 1.0 + np.linalg.norm(high.position - cur.position) / 0.22)
+        above = at(seat_z + 0.04 + self.rng.uniform(0.0, 0.03))
+        self.carry_object_to(world, oid, above, T_ep, 1.0, tremor=0.3)
+        self.hold(world, 0.2)
+        T_ep = self.object_in_hand(world, oid)  # look again before lowering it in
+        self.carry_object_to(world, oid, above, T_ep, 0.4, tremor=0.2)
+        self.maybe_hesitate(world)
+        self.carry_object_to(world, oid, at(seat_z + PIECE_DROP), T_ep, 1.2, tremor=0.1)
+        self.hold(world, 0.2)
+        self.gripper(world, OPEN, 0.5)
+        self.retreat(world)
+
+    def _three_piece_assembly(self, world) -> None:
+        b, p1 = self.task.object("base"), self.task.object("piece_1")
+        self._grasp_piece(world, "piece_1", np.pi)
+        self._insert_piece(world, "piece_1", "base", np.pi / 2, TABLE_Z + p1.half_extents[2])
+        self._grasp_piece(world, "piece_2", np.pi / 2)   # the knob is square
+        seat = TABLE_Z + 2 * b.half_extents[2] + self.task.object("piece_2").half_extents[2]  # legs on the base
+        self._insert_piece(world, "piece_2", "piece_1", np.pi, seat)
+
     PLANS: dict[str, Callable] = {"Square": _square, "NutAssembly": _nut_assembly, "PickPlace": _pick_place,
-                                  "Threading": _threading}
+                                  "Threading": _threading, "ThreePieceAssembly": _three_piece_assembly}
 
     def run(self, world, variant: str, scene_seed: int) -> DemoRollout:
         """Reset `world` to (task, variant, scene_seed), perform the task, return the recorded rollout."""

@@ -86,6 +86,8 @@ MIMICGEN_SPECS: dict[str, MimicGenSpec] = {
     "NutAssembly": MimicGenSpec((10, 20), "nearest_neighbor_object", 3),
     "Threading": MimicGenSpec((5, 10), "random"),
     "PickPlace": MimicGenSpec((10, 20), "nearest_neighbor_object", 3, select_src_per_subtask=True),
+    # three_piece_assembly: random, [5, 10] for each of its 3 subtask ends
+    "ThreePieceAssembly": MimicGenSpec((5, 10), "random"),
 }
 DEFAULT_SPEC = MimicGenSpec()  # a task MimicGen has no config for: its template defaults
 

@@ -1,4 +1,5 @@
-"""The task objects: nuts with handles, pegs, milk carton, bin, needle, tripod, obstacle.
+"""The task objects: nuts with handles, pegs, milk carton, bin, needle, tripod, obstacle, and Three Piece
+Assembly's base and pieces (core/tasks/assembly.py).
 
 Dimensions are robosuite 1.5.2's and NVlabs/mimicgen's (each constant names its file and value); the
 square nut keeps our handle/wall (its hole and the peg already match robosuite). Each builder returns

@@ -45,6 +45,8 @@ class ScriptParams:
     insert_pre: float = 0.05          # needle tip this far before the ring plane before inserting (m)
     insert_depth: float = 0.06        # and this far past it at the end: the 12 cm shaft's centre at the
     #                                   ring, MimicGen's success (mimicgen/envs/robosuite/threading.py)
+    piece_grasp_depth: float = 0.02   # Three Piece Assembly: grasp this far below a piece's top (m)
+    piece_drop: float = 0.008         # and release it this far above its seat (m)
     yaw_noise: float = 0.0            # hooks for a noisy demonstrator (rad, m); 0 = deterministic
     pos_noise: float = 0.0
 
@@ -140,6 +142,7 @@ def _aabb_corners_world(o: ObjectSpec, pose: Pose) -> np.ndarray:
     return pose.rotation.apply(c) + pose.position
 
 
+PIECE_GRASP_PERIOD = {"assembly_piece_1": np.pi, "assembly_piece_2": np.pi / 2}
 MAX_EE_YAW = np.radians(100.0)  # |EE yaw| beyond this runs panda_joint7 into its limits
 HAND_HALF_SPAN = 0.11   # panda_hand half width along the finger axis (m)
 
@@ -164,14 +167,19 @@ def grasp_pose(obj: ObjectSpec, pose: Pose, reference_yaw: float, params: Script
     if obj.type == "milk":
         point = pose.position + [0.0, 0.0, obj.half_extents[2] - params.milk_grasp_depth]
         period = np.pi / 2
+    elif obj.type in PIECE_GRASP_PERIOD:   # across the piece's x (piece 1's ridge, piece 2's square knob)
+        point = pose.rotation.apply(obj.keypoint("top")) + pose.position - [0.0, 0.0, params.piece_grasp_depth]
+        period = PIECE_GRASP_PERIOD[obj.type]
+        reference_yaw -= np.pi / 2   # compare in the object's frame: EE yaw = object yaw + 90 deg
     else:
         point = pose.rotation.apply(obj.keypoint("handle")) + pose.position + [0.0, 0.0, params.grasp_z_offset]
         period = np.pi
     base = nearest_equivalent(object_yaw(pose), reference_yaw, period)
     cands = [base + k * period for k in range(-2, 3) if abs(base + k * period - reference_yaw) <= np.pi / 2 + 1e-6]
-    yaw = min(cands, key=lambda y: (10.0 if hand_clearance(point[:2], y, others) < 0.02 else 0.0)
+    turn = np.pi / 2 if obj.type in PIECE_GRASP_PERIOD else 0.0
+    yaw = min(cands, key=lambda y: (10.0 if hand_clearance(point[:2], y + turn, others) < 0.02 else 0.0)
               + abs(y - reference_yaw))
-    return top_down(point, yaw)
+    return top_down(point, yaw + turn)
 
 
 def pick(s: Scripter, obj_id: str) -> None:
@@ -258,6 +266,17 @@ def _place_in_bin(obj: ObjectSpec, bin_: ObjectSpec, env, prm: ScriptParams) -> 
     return goal
 
 
+def _seat_piece(piece: ObjectSpec, target: ObjectSpec, seat_z: float, period: float, env,
+                prm: ScriptParams) -> Callable[[Pose], Pose]:
+    """A piece's goal: centred over target, turned to the target's yaw (mod period) nearest its own, its
+    centre prm.piece_drop above seat_z (piece 1 on the table in the base's hole, piece 2's legs on the base)."""
+    def goal(piece_pose: Pose) -> Pose:
+        t = env.object_poses()[target.id]
+        R = Rotation.from_euler("z", nearest_equivalent(object_yaw(t), object_yaw(piece_pose), period))
+        return Pose([*t.position[:2], seat_z + prm.piece_drop], R.as_quat())
+    return goal
+
+
 def _thread(s: Scripter, needle: ObjectSpec, tripod: ObjectSpec) -> None:
     env, prm = s.env, s.params
     tp = env.object_poses()[tripod.id]
@@ -316,6 +335,13 @@ def _run(task: TaskSpec, s: Scripter, O: dict, env, prm: ScriptParams) -> None:
     elif task.name == "Threading":
         pick(s, "needle")
         _thread(s, O["needle"], O["tripod"])
+    elif task.name == "ThreePieceAssembly":
+        b, p1, p2 = O["base"], O["piece_1"], O["piece_2"]
+        pick(s, "piece_1")
+        carry(s, "piece_1", _seat_piece(p1, b, TABLE_Z + p1.half_extents[2], np.pi / 2, env, prm))
+        pick(s, "piece_2")
+        seat = TABLE_Z + 2 * b.half_extents[2] + p2.half_extents[2]
+        carry(s, "piece_2", _seat_piece(p2, p1, seat, np.pi, env, prm))
 
 
 def with_params(**kw) -> ScriptParams:

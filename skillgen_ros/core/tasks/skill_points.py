@@ -1,7 +1,8 @@
 """Where the hand works on each skill's object: one keypoint per (task, skill), in the object frame.
 
 A nut is grasped by its handle, not its centre; a peg is approached at its top; the milk carton
-at its top, the bin at its floor, the needle at its handle, the tripod at its ring. One table,
+at its top, the bin at its floor, the needle at its handle, the tripod at its ring, an assembly piece 2 cm under its top and
+the piece below it at its top. One table,
 read by auto-annotation (the point a skill's start is measured to, cli/annotate.py), by teleop's
 status line (the distance from the hand to the next object of interest) and by the grasp
 pictures in docs/teleop.md (scripts/teleop_grasps.py).
@@ -19,6 +20,7 @@ SKILL_POINTS: dict[str, tuple[str, ...]] = {
     "NutAssembly": ("handle", "top", "handle", "top"),
     "PickPlace": ("top", "floor_center"),
     "Threading": ("handle", "ring_center"),
+    "ThreePieceAssembly": ("grasp", "top", "grasp", "top"),
 }
 
 

@@ -1,4 +1,5 @@
-"""The task suite: Square, PickPlace, NutAssembly, Threading (+ clutter variants of Square/PickPlace).
+"""The task suite: Square, PickPlace, NutAssembly, Threading, ThreePieceAssembly (+ clutter variants of
+Square/PickPlace).
 
 Reset regions are robosuite's / MimicGen's placement initializers, to the millimetre, in our world
 frame (the Panda base, mounted as robosuite mounts it: core/robot.py). Those initializers give x/y
@@ -17,6 +18,7 @@ import numpy as np
 from ..errors import UnknownTaskError
 from ..geometry import Pose
 from ..robot import TABLE_CENTER_XY, TABLE_Z
+from . import assembly as A
 from . import objects as O
 from .spec import ObjectSpec, Region, SceneState, SkillSpec, TaskSpec
 
@@ -188,7 +190,30 @@ def _threading() -> TaskSpec:
     return TaskSpec("Threading", (nd, tp), skills, tuple(table), table, lambda s: needle_through_ring(nd, tp, s))
 
 
-_BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_assembly, "Threading": _threading}
+def _three_piece_assembly() -> TaskSpec:
+    b, p1, p2 = A.base(), A.piece_1(), A.piece_2()
+    # MimicGen mimicgen/envs/robosuite/three_piece_assembly.py _get_initial_placement_bounds, sampled base,
+    # piece_1, piece_2 (SequentialCompositeSampler order), x / y relative to the table centre:
+    # D0 base fixed (0, 0) z_rot 0, pieces x, y (-0.22, 0.22) z_rot 1.5708; D1 the base too in x, y (-0.22, 0.22);
+    # D2 base z_rot (-pi/4, pi/4), pieces z_rot (1.5708 - pi/2, 1.5708 + pi/2).
+    box = (-0.22, 0.22)
+    piece = _rs(box, box, (PI / 2, PI / 2))
+    piece2 = _rs(box, box, (0.0, PI))
+    table = {
+        "D0": {"base": _fixed(0.0, 0.0), "piece_1": piece, "piece_2": piece},
+        "D1": {"base": _rs(box, box), "piece_1": piece, "piece_2": piece},
+        "D2": {"base": _rs(box, box, (-PI / 4, PI / 4)), "piece_1": piece2, "piece_2": piece2},
+    }
+    skills = (SkillSpec(0, "piece_1", "grasp_piece_1", "transit"),
+              SkillSpec(1, "base", "insert_piece_1_into_base", "transfer", "piece_1"),
+              SkillSpec(2, "piece_2", "grasp_piece_2", "transit"),
+              SkillSpec(3, "piece_1", "insert_piece_2_into_piece_1", "transfer", "piece_2"))
+    return TaskSpec("ThreePieceAssembly", (b, p1, p2), skills, tuple(table), table,
+                    lambda s: A.assembled(b, p1, p2, s))
+
+
+_BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_assembly, "Threading": _threading,
+             "ThreePieceAssembly": _three_piece_assembly}
 TASK_NAMES: tuple[str, ...] = tuple(_BUILDERS)
 _CACHE: dict[str, TaskSpec] = {}
 

@@ -25,7 +25,7 @@ def _rollout_range(ckpt: bytes, demos_tar: bytes, first: int, n: int, kw: dict) 
         path = os.path.join(tmp, "policy.pt")
         with open(path, "wb") as f:
             f.write(ckpt)
-        demos_dir = os.path.dirname(unpack_dir(demos_tar, tmp)) if demos_tar else kw.pop("demos_dir", "bags")
+        demos_dir = os.path.dirname(unpack_dir(demos_tar, tmp)[0]) if demos_tar else kw.pop("demos_dir", "bags")
         if demos_tar:  # evaluate reads <demos_dir>/<task>/: the packed dir is the task's
             os.rename(os.path.join(tmp, "demos"), os.path.join(tmp, kw["task"]))
         return evaluate(path, first_index=first, rollouts=n, demos_dir=demos_dir, **kw)

@@ -202,17 +202,42 @@ class ShardStore:
         return out[0], out[1]
 
 
+_ORIGIN = "skillgen.origin"  # pax header: the packed directory's absolute path on the driver
+
+
 def pack_dir(path: str) -> bytes:
-    """A directory (the source demo bags) as tar bytes, to send to workers through the object store."""
+    """A directory (the source demo bags) as tar bytes, to send to workers through the object store.
+    The tar remembers the directory's absolute path, which the datasets record (relocate_source_demos)."""
     if not os.path.isdir(path):
         raise InvalidInputError(f"source demos {path} is not a directory", reason="NO_SOURCE_DEMOS")
     buf = io.BytesIO()
-    with tarfile.open(fileobj=buf, mode="w") as t:
+    with tarfile.open(fileobj=buf, mode="w", format=tarfile.PAX_FORMAT,
+                      pax_headers={_ORIGIN: os.path.abspath(path)}) as t:
         t.add(path, arcname="demos")
     return buf.getvalue()
 
 
-def unpack_dir(data: bytes, dest: str) -> str:
+def unpack_dir(data: bytes, dest: str) -> tuple[str, str]:
+    """Unpack pack_dir's bytes under `dest`: (the unpacked directory, its path on the driver)."""
     with tarfile.open(fileobj=io.BytesIO(data), mode="r") as t:
         t.extractall(dest, filter="data")
-    return os.path.join(dest, "demos")
+        origin = t.pax_headers.get(_ORIGIN, "")
+    return os.path.join(dest, "demos"), origin
+
+
+def relocate_source_demos(out_dir: str, unpacked: str, origin: str) -> None:
+    """Make a shard's env_args name the source demos by their driver paths, as a serial run does,
+    not by the worker's temporary copy (the merged dataset then equals the serial run's)."""
+    if not origin:
+        return
+    root = os.path.abspath(unpacked)
+    for name in (DATASET_FILE, FAILED_FILE):
+        path = os.path.join(out_dir, name)
+        if not os.path.exists(path):
+            continue
+        with h5py.File(path, "a") as f:
+            env = json.loads(f["data"].attrs["env_args"])
+            gen = env.get("generation", {})
+            gen["source_demos"] = [os.path.join(origin, os.path.relpath(p, root)) if p.startswith(root + os.sep)
+                                   else p for p in gen.get("source_demos", [])]
+            f["data"].attrs["env_args"] = json.dumps(env, sort_keys=True)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 from ..generation.session import Progress, RunRequest
 from .schedule import IndexRange
-from .shards import ShardPayload, pack_shard, unpack_dir
+from .shards import ShardPayload, pack_shard, relocate_source_demos, unpack_dir
 
 MODES = ("in_process", "graph")
 
@@ -94,7 +94,8 @@ class RangeWorker:
         _ignore_sigint()
         self.worker, self.spec = worker, spec
         self.tmp = tempfile.mkdtemp(prefix=f"skillgen_{worker}_")
-        self.req = dataclasses.replace(req, source_demos=unpack_dir(demos_tar, self.tmp), video_attempts=0,
+        demos, self.origin = unpack_dir(demos_tar, self.tmp)
+        self.req = dataclasses.replace(req, source_demos=demos, video_attempts=0,
                                        target_successes=0)
         self._stopped: set[str] = set()  # runs told to stop (a pool serves several runs: test, resume)
         self._lock = threading.Lock()
@@ -136,6 +137,7 @@ class RangeWorker:
             if run not in self._stopped:
                 req = dataclasses.replace(self.req, first_index=first, attempts=end - first, output_dir=out)
                 self.runner.run(req, self._progress, lambda: "CANCELED" if run in self._stopped else "")
+            relocate_source_demos(out, self.req.source_demos, self.origin)
             return pack_shard(out, r, self.worker, time.perf_counter() - t0)
         finally:
             shutil.rmtree(out, ignore_errors=True)

@@ -150,8 +150,8 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
 
     should_stop() returning a non-empty reason ends the run cleanly after the current attempt;
     before_attempt(k) runs before the k-th attempt of the run (e.g. to record only some of them).
-    Each attempt's Episode is dropped from its result once the sink wrote it (keep_episodes=True
-    keeps them, for tests that compare attempts' arrays).
+    Each attempt's Episode is dropped from its result once the sink wrote it, except those the
+    videos render (keep_episodes=True keeps them all, for tests that compare attempts' arrays).
     """
     from ..dataset.report import RunSummary, write_report as _write_report
     from ..dataset.sink import AttemptSink, make_env_args
@@ -163,6 +163,7 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
     t0 = time.perf_counter()
     env_args = make_env_args(req.task, req.variant, req.method, req.seed, cfg, [o.id for o in task.objects],
                              [d.source for d in demos])
+    outcomes: set[str] = set()
     with AttemptSink(req.output_dir, env_args, keep_timings=keep_timings) as sink:
         out.dataset_path, out.failed_path = sink.dataset_path, sink.failed_path
         for k in range(req.attempts):
@@ -175,7 +176,10 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
                 before_attempt(k)
             r = run_attempt(env, demos, task, req.method, index, req.seed, cfg)
             sink.add(r)
-            out.results.append(r if keep_episodes else dataclasses.replace(r, episode=None))
+            # the videos re-render the first video_attempts attempts and each outcome's first (clips.py)
+            filmed = req.video_attempts > 0 and (k < req.video_attempts or r.reason.value not in outcomes)
+            outcomes.add(r.reason.value)
+            out.results.append(r if keep_episodes or filmed else dataclasses.replace(r, episode=None))
             out.failures[r.reason.value] += 0 if r.success else 1
             done, succ = len(out.results), out.successes
             elapsed = time.perf_counter() - t0

@@ -127,6 +127,15 @@ def test_export_without_cameras_and_failed_files(tmp_path, demos):  # noqa: F811
     with pytest.raises(DatasetError) as e:  # failed.hdf5's attempts failed before moving: zero steps each
         export_lerobot(sink.failed_path, str(tmp_path / "lr_failed"))
     assert e.value.reason == "EMPTY_DATASET" and not os.path.exists(tmp_path / "lr_failed")
+    with h5py.File(sink.dataset_path, "r+") as f:  # demos of one file that LeRobot cannot hold as one dataset
+        g = f["data/demo_1/obs"]
+        wider = np.concatenate([g["robot0_gripper_qpos"][()]] * 2, axis=1)
+        del g["robot0_gripper_qpos"]
+        g["robot0_gripper_qpos"] = wider
+    with pytest.raises(DatasetError) as e:
+        export_lerobot(sink.dataset_path, str(tmp_path / "lr_mixed"))
+    assert e.value.reason == "BAD_DATASET" and "observation.state" in str(e.value)
+    assert not os.path.exists(tmp_path / "lr_mixed") and not os.path.exists(str(tmp_path / "lr_mixed") + ".writing")
 
 
 def test_a_failure_part_way_leaves_nothing(tmp_path, demos):  # noqa: F811

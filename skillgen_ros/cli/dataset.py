@@ -51,12 +51,14 @@ def _export(a) -> dict:
         raise DatasetError(f"unknown export format {a.format!r}; one of {', '.join(EXPORT_FORMATS)}",
                            reason="UNKNOWN_FORMAT")
     if a.format == "lerobot":
-        # The export is local: nothing may contact the Hugging Face hub; SVT-AV1 prints only errors.
+        # The export is local: nothing may contact the Hugging Face hub. Our bar over the demos
+        # replaces datasets' per-episode bars; SVT-AV1 prints only errors.
         os.environ.setdefault("HF_HUB_OFFLINE", "1")
+        os.environ.setdefault("HF_DATASETS_DISABLE_PROGRESS_BARS", "1")
         os.environ.setdefault("SVT_LOG", "1")
         from skillgen_ros.core.dataset.lerobot_export import export_lerobot
 
-        r = export_lerobot(a.path, a.output, repo_id=a.repo_id)
+        r = export_lerobot(a.path, a.output, repo_id=a.repo_id, progress=True)
         return {"path": r.path, "episodes": r.episodes, "frames": r.frames, "fps": r.fps,
                 "codebase_version": r.codebase_version, "features": list(r.features),
                 "videos": list(r.video_keys), "skipped_empty_demos": list(r.skipped_empty)}

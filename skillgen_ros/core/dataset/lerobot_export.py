@@ -9,6 +9,7 @@ control rate (env_args.env_kwargs.control_freq, 20 Hz). The mapping (docs/datase
     obs/robot0_{eef_pos,eef_quat,gripper_qpos,joint_pos}  -> observation.state (concatenated, float32)
     obs/object                                            -> observation.environment_state (float32)
     obs/<camera>_image                                    -> observation.images.<camera> (video)
+    any other low-dim obs/<key> (not <id>_pose)           -> observation.<key> (float32)
     actions                                               -> action (float32)
     actions_abs, states                                   -> absolute_action, sim_state (float32)
     rewards, dones                                        -> next.reward (float32), next.done (bool)
@@ -27,10 +28,12 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import warnings
 from dataclasses import dataclass
 
 import h5py
 import numpy as np
+from tqdm import tqdm
 
 from .hdf5 import DatasetError, _attr_value, validate_dataset
 from .lerobot_import import codebase_version, lerobot_dataset_class
@@ -83,22 +86,24 @@ def _row_shape(ds) -> tuple[int, ...]:
 def plan_columns(f: h5py.File, demos: list[str]) -> list[Column]:
     """The features of the export, from the first demo; every other demo must match it."""
     g = f["data"][demos[0]]
-    obs, cols = g["obs"], []
+    obs = g["obs"]
     state_names: list[str] = []
     for k in STATE_KEYS:
         n = _row_shape(obs[k])[0]
         state_names += STATE_NAMES.get(k, tuple(f"{k.removeprefix('robot0_')}_{i}" for i in range(n)))
-    cols.append(Column("observation.state", tuple(f"obs/{k}" for k in STATE_KEYS), "float32",
-                       (len(state_names),), tuple(state_names)))
     ids = json.loads(g.attrs.get("object_ids", "[]"))
     env_names = tuple(f"{i}_{c}" for i in ids for c in POSE_NAMES)
     n_env = _row_shape(obs["object"])[0]
-    cols.append(Column("observation.environment_state", ("obs/object",), "float32", (n_env,),
-                       env_names if len(env_names) == n_env else None))
+    cols = [Column("observation.state", tuple(f"obs/{k}" for k in STATE_KEYS), "float32", (len(state_names),),
+                   tuple(state_names)),
+            Column("observation.environment_state", ("obs/object",), "float32", (n_env,),
+                   env_names if len(env_names) == n_env else None)]
     for k in sorted(obs):
         if k.endswith(IMAGE_SUFFIX) and obs[k].ndim == 4 and obs[k].dtype == np.uint8:
             cols.append(Column(f"observation.images.{k[:-len(IMAGE_SUFFIX)]}", (f"obs/{k}",), "video",
                                _row_shape(obs[k]), None))
+        elif k not in STATE_KEYS and k != "object" and not k.endswith("_pose") and obs[k].ndim <= 2:
+            cols.append(Column(f"observation.{k}", (f"obs/{k}",), "float32", _row_shape(obs[k]), None))
     cols += [Column("action", ("actions",), "float32", (7,), ACTION_NAMES),
              Column("absolute_action", ("actions_abs",), "float32", (8,), ABS_ACTION_NAMES),
              Column("sim_state", ("states",), "float32", _row_shape(g["states"]), None),
@@ -107,16 +112,22 @@ def plan_columns(f: h5py.File, demos: list[str]) -> list[Column]:
     for k in sorted(g["labels"]):
         ds = g["labels"][k]
         cols.append(Column(f"labels.{k}", (f"labels/{k}",), np.dtype(ds.dtype).name, _row_shape(ds), None))
-    for name in demos[1:]:  # LeRobot has one feature set per dataset
-        other = f["data"][name]
-        for c in cols:
-            width = sum(_row_shape(other[s])[-1] for s in c.sources) if c.dtype != "video" else None
-            if any(s not in other for s in c.sources) or (
-                    _row_shape(other[c.sources[0]]) != c.shape if c.dtype == "video" else width != c.shape[-1]):
-                raise DatasetError(f"{f.filename}: {name} does not match {demos[0]} in {c.feature} "
-                                   f"({', '.join(c.sources)}); one LeRobot dataset has one feature shape",
-                                   reason="BAD_DATASET")
+    for name in demos[1:]:
+        _check_matches(f, name, demos[0], cols)
     return cols
+
+
+def _check_matches(f: h5py.File, name: str, first: str, cols: list[Column]) -> None:
+    """LeRobot has one feature set per dataset: demo `name` must give every column its shape."""
+    g = f["data"][name]
+    for c in cols:
+        if all(s in g for s in c.sources):
+            rows = [_row_shape(g[s]) for s in c.sources]
+            shape = rows[0] if c.dtype == "video" else (sum(int(np.prod(r)) for r in rows),)
+            if shape == c.shape or (c.dtype != "video" and shape[0] == int(np.prod(c.shape))):
+                continue
+        raise DatasetError(f"{f.filename}: {name} does not match {first} in {c.feature} ({', '.join(c.sources)}); "
+                           "a LeRobot dataset has one shape per feature", reason="BAD_DATASET")
 
 
 def _episode_arrays(g, cols: list[Column]) -> dict[str, np.ndarray]:
@@ -137,12 +148,13 @@ def _check_paths(src: str, dst: str) -> None:
     if os.path.exists(dst) and not (os.path.isdir(dst) and not os.listdir(dst)):
         raise DatasetError(f"{dst} exists and is not an empty directory; choose another output",
                            reason="OUTPUT_EXISTS")
-    if os.path.abspath(dst).startswith(os.path.abspath(src) + os.sep):
-        raise DatasetError(f"{dst}: the export cannot go inside its input", reason="OUTPUT_EXISTS")
 
 
-def export_lerobot(src: str, dst: str, repo_id: str | None = None, vcodec: str = "libsvtav1") -> LeRobotSummary:
-    """Write the demos of `src` as a LeRobotDataset in the directory `dst` (absent or empty)."""
+def export_lerobot(src: str, dst: str, repo_id: str | None = None, vcodec: str | None = None,
+                   progress: bool = False) -> LeRobotSummary:
+    """Write the demos of `src` as a LeRobotDataset in the directory `dst` (absent or empty).
+
+    `vcodec` is lerobot's video codec (None: lerobot's default, libsvtav1); `progress` shows a bar over the demos."""
     _check_paths(src, dst)
     summary = validate_dataset(src)  # BAD_DATASET: not our layout
     LeRobotDataset = lerobot_dataset_class()  # LEROBOT_NOT_INSTALLED
@@ -165,10 +177,13 @@ def export_lerobot(src: str, dst: str, repo_id: str | None = None, vcodec: str =
                 raise DatasetError(f"{src}: no demo has any step; nothing to export", reason="EMPTY_DATASET")
             cols = plan_columns(f, kept)
             ds = LeRobotDataset.create(repo_id=repo_id, fps=fps, features={c.feature: c.spec() for c in cols},
-                                       root=tmp, robot_type=ROBOT_TYPE, use_videos=True, vcodec=vcodec)
+                                       root=tmp, robot_type=ROBOT_TYPE, use_videos=True,
+                                       **({"vcodec": vcodec} if vcodec else {}))
             episodes = []
-            for name in kept:
-                _write_episode(ds, f["data"][name], cols, task)
+            for name in tqdm(kept, desc="lerobot export", unit="demo", disable=not progress):
+                with warnings.catch_warnings():  # lerobot's stats histogram says it reads bools as uint8
+                    warnings.filterwarnings("ignore", "Converting input from bool", RuntimeWarning)
+                    _write_episode(ds, f["data"][name], cols, task)
                 episodes.append({"episode_index": len(episodes), "demo": name, **_demo_attrs(f["data"][name])})
             ds.finalize()
         with open(os.path.join(tmp, META_FILE), "w") as fh:

@@ -47,22 +47,23 @@ def _lerobot():
 
 @pytest.fixture
 def hub_forbidden(monkeypatch):
-    """Loading a local export must not touch the hub: offline, and its download calls raise."""
+    """Writing and loading a local export must not touch the hub: offline, and its download calls raise."""
+    _lerobot()
     import huggingface_hub.constants as hub
     import lerobot.datasets.lerobot_dataset as lrd
+    import lerobot.datasets.utils as lru
 
     monkeypatch.setattr(hub, "HF_HUB_OFFLINE", True)
 
     def no_hub(*a, **k):
         raise AssertionError("the Hugging Face hub was contacted")
 
-    monkeypatch.setattr(lrd, "snapshot_download", no_hub)
-    monkeypatch.setattr(lrd, "HfApi", no_hub)
+    for module, name in ((lrd, "snapshot_download"), (lrd, "HfApi"), (lru, "HfApi")):
+        monkeypatch.setattr(module, name, no_hub)
 
 
 @pytest.fixture
-def exported(tmp_path, demos):  # noqa: F811
-    _lerobot()
+def exported(tmp_path, demos, hub_forbidden):  # noqa: F811
     src = generate(tmp_path / "run", demos, n=3, worlds=lambda i: CameraWorld(images=True)).dataset_path
     dst = tmp_path / "lerobot"
     dst.mkdir()  # an empty output directory is fine
@@ -70,7 +71,7 @@ def exported(tmp_path, demos):  # noqa: F811
     return src, str(dst)
 
 
-def test_lerobot_dataset_loads_the_export_and_every_frame_matches_the_hdf5(exported, hub_forbidden):
+def test_lerobot_dataset_loads_the_export_and_every_frame_matches_the_hdf5(exported):
     LeRobotDataset = _lerobot()
     from lerobot.datasets.lerobot_dataset import CODEBASE_VERSION
 

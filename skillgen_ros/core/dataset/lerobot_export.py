@@ -39,7 +39,9 @@ from .hdf5 import DatasetError, _attr_value, validate_dataset
 from .lerobot_import import codebase_version, lerobot_dataset_class
 
 STATE_KEYS = ("robot0_eef_pos", "robot0_eef_quat", "robot0_gripper_qpos", "robot0_joint_pos")
-STATE_NAMES = {"robot0_eef_pos": ("eef_x", "eef_y", "eef_z"), "robot0_eef_quat": ("eef_qx", "eef_qy", "eef_qz", "eef_qw")}
+# Names of observation.state's entries; the other state keys are named <key without robot0_>_<i>.
+STATE_NAMES = {"robot0_eef_pos": ("eef_x", "eef_y", "eef_z"),
+               "robot0_eef_quat": ("eef_qx", "eef_qy", "eef_qz", "eef_qw")}
 POSE_NAMES = ("x", "y", "z", "qx", "qy", "qz", "qw")
 ACTION_NAMES = ("dx", "dy", "dz", "drx", "dry", "drz", "gripper")  # docs/dataset.md "Actions"
 ABS_ACTION_NAMES = POSE_NAMES + ("gripper",)

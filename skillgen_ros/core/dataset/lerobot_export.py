@@ -35,10 +35,10 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
-from .hdf5 import DatasetError, _attr_value, validate_dataset
+from .hdf5 import OBS_KEYS, DatasetError, _attr_value, validate_dataset
 from .lerobot_import import codebase_version, lerobot_dataset_class
 
-STATE_KEYS = ("robot0_eef_pos", "robot0_eef_quat", "robot0_gripper_qpos", "robot0_joint_pos")
+STATE_KEYS = tuple(k for k in OBS_KEYS if k.startswith("robot0_"))  # the robot's proprioception, in order
 # Names of observation.state's entries; the other state keys are named <key without robot0_>_<i>.
 STATE_NAMES = {"robot0_eef_pos": ("eef_x", "eef_y", "eef_z"),
                "robot0_eef_quat": ("eef_qx", "eef_qy", "eef_qz", "eef_qw")}

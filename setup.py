@@ -5,10 +5,26 @@ them in bin/, and scripts/bootstrap.sh links them into <venv>/lib/skillgen_ros s
 ament-index lookup `ros2 run` does (prefix/lib/<pkg>/<exe>) works on pip-only machines too.
 """
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
 
 PACKAGE = "skillgen_ros"
+HERE = Path(__file__).resolve().parent
+
+
+def _extra_pins() -> dict:
+    """name -> "name==version" from requirements-extras.txt, the one place the extras are pinned."""
+    lines = (HERE / "requirements-extras.txt").read_text().splitlines()
+    return {ln.split("==")[0].strip(): ln.strip() for ln in lines if "==" in ln and not ln.lstrip().startswith("#")}
+
+
+# Optional extras (issue 24): `pip install .[lerobot]` (skillgen dataset export --format lerobot),
+# `.[robomimic]` (robomimic's own loaders). In this project's venv, scripts/bootstrap.sh installs
+# them from requirements-extras.txt with --no-deps instead: lerobot 0.4.4 declares torch<2.11 and
+# robomimic 0.3.0 an unpinned torchvision, and resolving either would replace the pinned torch 2.13.
+_PINS = _extra_pins()
+EXTRAS = {"lerobot": [_PINS["lerobot"]], "robomimic": [_PINS["robomimic"]]}
 
 # One place lists the executables: name -> module:function. Nodes start through nodes/entry.py,
 # which makes Ctrl-C quiet before the node's slow imports.
@@ -40,6 +56,7 @@ setup(
         (f"share/{PACKAGE}/launch", glob("launch/*.py")),
     ],
     install_requires=["setuptools"],
+    extras_require=EXTRAS,
     zip_safe=False,
     maintainer="skillgen_ros developers",
     maintainer_email="skillgen@example.com",

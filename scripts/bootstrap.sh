@@ -17,8 +17,10 @@ stamp_set() { mkdir -p "$STAMPS"; echo "$2" > "$STAMPS/$1"; }
 
 # 1. Debian packages: libusb for open3d, a toolchain and Python headers for the interface build,
 #    venv support (the teleop terminal test drives a pseudo-terminal: no tmux), chromium for the
-#    report.html browser test.
-APT_PKGS=(libusb-1.0-0 cmake g++ make python3-dev python3-venv git chromium)
+#    report.html browser test, and FFmpeg 5.1's shared libraries, through which torchcodec decodes
+#    the LeRobot export's videos (the lerobot extra, requirements-extras.txt).
+APT_PKGS=(libusb-1.0-0 cmake g++ make python3-dev python3-venv git chromium
+          libavutil57 libavcodec59 libavformat59 libavdevice59 libavfilter8 libswscale6 libswresample4)
 missing=()
 for p in "${APT_PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -50,6 +52,17 @@ if ! stamp_ok pip "$h"; then
   stamp_set pip "$h"
 fi
 
+# 3b. Optional extras the test suite exercises: lerobot (the LeRobot export) and robomimic (its own
+#     loader reads our next_obs export). Pinned, installed without dependency resolution, because
+#     their declared pins would replace torch, numpy's opencv, packaging, setuptools and fsspec
+#     (requirements-extras.txt says which, and lists the closure they import).
+h=$(hash_of "$ROOT/requirements-extras.txt")
+if ! stamp_ok extras "$h"; then
+  log "installing optional extras (requirements-extras.txt: lerobot, robomimic)"
+  "$VPY" -m pip install -q --no-deps --no-build-isolation -r "$ROOT/requirements-extras.txt"
+  stamp_set extras "$h"
+fi
+
 # 4. msg_defs/ -> skillgen_interfaces, built and installed into the venv prefix.
 h=$(cd "$ROOT" && hash_of $(find msg_defs -type f | sort) requirements.txt)
 if ! stamp_ok msgs "$h"; then
@@ -74,7 +87,7 @@ fi
 
 # 5. skillgen_ros itself: editable, so code edits need no reinstall; data files (ament index
 #    marker, package.xml, params, launch) and lib/skillgen_ros/<exe> links for `ros2 run`.
-h=$(cd "$ROOT" && hash_of setup.py setup.cfg package.xml resource/skillgen_ros $(ls params/*.yaml launch/*.py 2>/dev/null))
+h=$(cd "$ROOT" && hash_of setup.py setup.cfg package.xml requirements-extras.txt resource/skillgen_ros $(ls params/*.yaml launch/*.py 2>/dev/null))
 if ! stamp_ok pkg "$h"; then
   log "installing skillgen_ros"
   "$VPY" -m pip install -q --no-deps --no-build-isolation -e "$ROOT"

@@ -1,7 +1,8 @@
 """`skillgen dataset export --format robomimic-next-obs` (issue 24): next_obs/ for robomimic's offline RL.
 
 The layout test always runs; the loader test uses robomimic's own SequenceDataset(load_next_obs=True)
-and skips only where robomimic is not installed."""
+and skips only where robomimic is not installed (scripts/bootstrap.sh installs robomimic 0.3.0 from
+requirements-extras.txt, so it runs in scripts/test.sh)."""
 import hashlib
 import inspect
 
@@ -57,8 +58,8 @@ def test_export_refuses_its_input_and_existing_files_and_the_validator_checks_ne
 
 
 def test_robomimic_sequence_dataset_loads_next_obs(exported):
-    pytest.importorskip("robomimic", reason="robomimic is not installed (pip install robomimic); the layout "
-                                            "test above checks next_obs without it")
+    pytest.importorskip("robomimic", reason="robomimic is not installed (bash scripts/bootstrap.sh installs "
+                                            "requirements-extras.txt); the layout test above checks next_obs without it")
     import robomimic.utils.obs_utils as ObsUtils
     from robomimic.utils.dataset import SequenceDataset
 

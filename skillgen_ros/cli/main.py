@@ -22,7 +22,7 @@ DELEGATED = {
     "annotate": ("skillgen_ros.cli.annotate", "propose, override and validate skill annotations of a demo bag"),
     "demos": ("skillgen_ros.cli.demos", "record source demonstrations (scripted demonstrator or teleop)"),
     "generate": ("skillgen_ros.cli.generate", "run a generation through the node graph (the main job)"),
-    "dataset": ("skillgen_ros.cli.dataset", "validate or merge generated datasets (shards)"),
+    "dataset": ("skillgen_ros.cli.dataset", "validate, merge or export generated datasets (robomimic next_obs, LeRobot)"),
     "deploy": ("skillgen_ros.cli.deploy", "evaluate a Hybrid Skill Policy checkpoint (rollouts on held-out seeds)"),
     "train": ("skillgen_ros.cli.train", "learn a Hybrid Skill Policy (π, T, I) from a generated dataset"),
     "view": ("skillgen_ros.cli.view", "serve the running graph to Foxglove (ws://127.0.0.1:8765)"),

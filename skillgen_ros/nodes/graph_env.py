@@ -21,7 +21,7 @@ through pinocchio). Skill steps are the measured states skill_replay saw.
 Every call has a timeout; a node that does not answer becomes a failure with a reason
 (PERCEPTION_FAILED, PLAN_FAILED, SKILL_FAILED, TIMEOUT) instead of a hang, and the run goes on:
 before each attempt a server seen before that has gone (a node killed and being respawned) is
-waited for up to timeout_recover s (issue 19, chaos).
+waited for up to timeout_recover s (issue 19, chaos); graph_calls.py holds that plumbing.
 """
 from __future__ import annotations
 
@@ -41,28 +41,20 @@ from skillgen_interfaces.msg import OscTarget, SceneObject
 from skillgen_interfaces.srv import (CaptureCameras, EstimatePoses, LoadDemos, PlanToPose, ResetScene, StateHistory,
                                      TaskSuccess)
 from skillgen_ros.answered import detached, first_answer
-from skillgen_ros.core.errors import NoAnswerError, SkillGenError
+from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
 from skillgen_ros.core.generation.grasp import CLOSE_PERIODS, GraspTracker, beliefs_along, grasp_step
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
 from skillgen_ros.nodes import convert
+from skillgen_ros.nodes.graph_calls import GraphCallError, GraphCalls
 from skillgen_ros.nodes.latest import LatestMessage, wait_future
 from skillgen_ros.nodes.run_state import RunState
 from skillgen_ros.nodes.state_history import DriverHistory, ns
 
 
-# A server that has gone: the reason the attempt fails with if it does not come back in time.
-_GONE_REASON = {"reset_scene": "TIMEOUT", "task_success": "TIMEOUT", "estimate_poses": "PERCEPTION_FAILED",
-                "plan_to_pose": "PLAN_FAILED", "replay_skill": "SKILL_FAILED"}
-
-
-class GraphCallError(NoAnswerError):
-    """A call of the graph that went unanswered; its reason names the stage (PERCEPTION_FAILED, ...)."""
-
-
-class RosGraphEnv:
+class RosGraphEnv(GraphCalls):
     """Implements attempt.GenerationEnv (+ the optional replay_skill hook) with ROS clients on `node`."""
 
     def __init__(self, node: Node, timeouts: dict, demos_dir: str = "", action_noise: float = 0.05,
@@ -125,59 +117,10 @@ class RosGraphEnv:
                 self._fingers = np.array([pos[j] for j in FINGER_JOINTS])
         return True
 
-    # -- plumbing
-    def _call(self, client, request, timeout: float, what: str, reason: str, idempotent: bool = True):
-        """Call a service with a timeout. The first response on a fresh connection can be lost (the
-        server may not have matched our response reader yet), so requests that are safe to repeat
-        are resent every few seconds until answered (answered.first_answer); one that moves the
-        robot is sent once."""
-        if not client.wait_for_service(timeout_sec=min(timeout, 5.0)):
-            raise GraphCallError(f"{what}: service {client.srv_name} is not available", reason=reason)
-        try:
-            if idempotent:
-                res = first_answer(lambda: client.call_async(request), wait_future, timeout,
-                                   each=min(5.0, timeout / 2))
-            else:
-                fut = client.call_async(request)
-                res = fut.result() if wait_future(fut, timeout) else None
-                if res is None:
-                    client.remove_pending_request(fut)
-        except Exception as e:  # noqa: BLE001 -- the future's exception, e.g. the service's error
-            raise GraphCallError(f"{what}: {e}", reason=reason) from e
-        if res is None:
-            raise GraphCallError(f"{what}: no answer from {client.srv_name} within {timeout:.1f} s", reason=reason)
-        return res
-
     def wait_for_state(self, timeout: float, after: int = -1) -> bool:
         """Take the driver's newest joint_states (the first after the `after`-th, if given)."""
         m = self._joints.wait_newer(after, timeout) if after >= 0 else self._joints.latest(timeout)
         return self._take_joints(m)
-
-    def _await_graph(self) -> None:
-        """Before an attempt: a server seen before that has gone (its node killed, and restarted by
-        `skillgen launch --respawn`) is waited for up to timeout_recover s, so the run's attempts are
-        not spent while it comes back; still gone, this attempt fails with its stage's reason (issue 19)."""
-        wait = float(self.t.get("recover", 0.0))
-        ready = {name for name, cli in self._servers().items()
-                 if (cli.server_is_ready() if hasattr(cli, "server_is_ready") else cli.service_is_ready())}
-        gone = sorted(self._seen - ready)
-        self._seen |= ready
-        if wait <= 0 or not gone:
-            return
-        self.node.get_logger().warning(f"{', '.join(gone)} gone; waiting up to {wait:.0f} s for it to come back")
-        end = time.monotonic() + wait
-        for name in gone:
-            cli = self._servers()[name]
-            left = max(0.1, end - time.monotonic())
-            back = cli.wait_for_server(timeout_sec=left) if hasattr(cli, "wait_for_server") else \
-                cli.wait_for_service(timeout_sec=left)
-            if not back:  # the reason its stage's call would have failed with
-                raise GraphCallError(f"{name} gone and not back within {wait:.0f} s", reason=_GONE_REASON[name])
-        self.node.get_logger().info(f"{', '.join(gone)} back")
-
-    def _servers(self) -> dict:
-        return {"reset_scene": self.reset_cli, "task_success": self.success_cli, "estimate_poses": self.estimate_cli,
-                "plan_to_pose": self.plan_cli, "replay_skill": self.replay_ac}
 
     # -- GenerationEnv
     def reset(self, task: str, variant: str, seed: int):
@@ -454,19 +397,6 @@ class RosGraphEnv:
             k_settled = min(k + CLOSE_PERIODS, len(steps["ee_poses"]) - 1)  # the fingers need a few periods to close
             self.grasps.grasped(obj, self._estimates[obj].matrix(), Pose.from_array(steps["ee_poses"][k_settled]).matrix())
 
-    def _wait_action(self, send_future, timeout: float):
-        end = time.monotonic() + timeout
-        if not wait_future(send_future, timeout):
-            raise GraphCallError("replay_skill goal was not answered", reason="SKILL_FAILED")
-        handle = send_future.result()
-        if not handle.accepted:
-            raise GraphCallError("replay_skill goal rejected (busy?)", reason="SKILL_FAILED")
-        rf = handle.get_result_async()
-        if not wait_future(rf, max(0.0, end - time.monotonic())):
-            handle.cancel_goal_async()
-            raise GraphCallError(f"replay_skill did not finish within {timeout:.0f} s", reason="TIMEOUT")
-        return rf.result()
-
     def step(self, target: Pose, gripper: float) -> Observation:
         """One OSC command (MimicGen's interpolation steps); waits for the driver's next joint_states."""
         _, count = self._joints.snapshot()
@@ -480,15 +410,6 @@ class RosGraphEnv:
         if not self.wait_for_state(self.t["state"], after=count):
             raise GraphCallError("driver did not step after an osc_target", reason="TIMEOUT")
         return self.observe()
-
-    def _check_driver(self) -> None:
-        """A sim driver that restarted during the attempt (killed and respawned: its clock starts
-        again, so its states are stamped before this attempt's reset) holds a fresh world, not this
-        attempt's: the attempt fails with TIMEOUT saying so, rather than as a failed task or motion."""
-        m = self._joints.latest()
-        if m is not None and self._reset_ns is not None and ns(m.header.stamp) < self._reset_ns:
-            raise GraphCallError("the driver restarted during the attempt (its clock went back); its world is "
-                                 "not this attempt's", reason="TIMEOUT")
 
     def task_success(self) -> bool:
         self._check_driver()

@@ -26,7 +26,7 @@ from typing import Callable
 
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionServer, CancelResponse
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
@@ -43,10 +43,11 @@ from skillgen_ros.core import validation as V
 from skillgen_ros.core.errors import ParameterError, SkillGenError
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
-from skillgen_ros.core.sim.commands import TrajectoryCode, TrajectoryError, validate_gripper, validate_osc_target
+from skillgen_ros.core.sim.commands import validate_gripper, validate_osc_target
 from skillgen_ros.nodes import convert
+from skillgen_ros.nodes.driver_actions import DriverActions
 from skillgen_ros.nodes.driver_cameras import DriverCameras
-from skillgen_ros.nodes.feedback import RESULT_TIMEOUT_S, FeedbackThrottle
+from skillgen_ros.nodes.feedback import RESULT_TIMEOUT_S
 
 PARAMS = {  # name: (default, description)
     "timing_mode": ("lockstep", "realtime (wall-clock timer) or lockstep (one period per osc_target / timeout)"),
@@ -73,14 +74,9 @@ PARAMS = {  # name: (default, description)
 }
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-GRIPPER_WAIT_S = 1.5
-MAX_TRAJECTORY_POINTS = 200_000  # about an hour at 50 Hz: more is a mistake, not a motion
-# A planned motion lasts seconds; a longer trajectory is a mistake, and in lockstep (one thread) the
-# driver answers nothing else while it runs one (the fuzz bench found a 1 h goal blocking it 60 s+).
-MAX_TRAJECTORY_SECONDS = 60.0  # ten times the longest planned motion
 
 
-class DriverNode(Node):
+class DriverNode(DriverActions, Node):
     """ROS shell over a world object (SimWorld or MockWorld); see the module docstring."""
 
     def __init__(self, name: str, make_world: Callable[[Callable], object], extra_params: dict | None = None):
@@ -353,101 +349,6 @@ class DriverNode(Node):
             res.success = bool(self.world.task_success()) if scene else False
             res.message = "no scene: call reset_scene first" if scene is None else "ok"
         return res
-
-    # ----------------------------------------------------------------- actions
-    def _one_goal(self, _goal) -> GoalResponse:
-        return GoalResponse.REJECT if self.busy else GoalResponse.ACCEPT
-
-    def _exec_traj(self, handle) -> ExecuteTrajectory.Result:
-        result = ExecuteTrajectory.Result()
-        try:
-            tol = V.finite("goal_tolerance", handle.request.goal_tolerance)  # <= 0: the default; NaN refused
-            if len(handle.request.trajectory.points) > MAX_TRAJECTORY_POINTS:
-                raise SkillGenError(f"{len(handle.request.trajectory.points)} trajectory points; at most "
-                                    f"{MAX_TRAJECTORY_POINTS} are accepted", "INVALID_GOAL")
-            names, times, pos, vel = convert.trajectory_from_msg(handle.request.trajectory)
-            if len(times) and not float(times[-1]) <= MAX_TRAJECTORY_SECONDS:
-                raise SkillGenError(f"trajectory lasts {float(times[-1]):.0f} s; at most {MAX_TRAJECTORY_SECONDS:.0f} s "
-                                    "are accepted", "INVALID_GOAL")
-            with self.lock:
-                self.world.start_trajectory(names, times, pos, vel, tol)
-                self.busy = True
-        except TrajectoryError as e:
-            self._report(e)
-            handle.abort()
-            result.error_code, result.error_string = int(e.code), str(e)
-            return result
-        except SkillGenError as e:
-            self._report(e)
-            handle.abort()
-            result.error_code, result.error_string = int(TrajectoryCode.INVALID_GOAL), str(e)
-            return result
-        except (ValueError, TypeError) as e:  # ragged point arrays in the message
-            handle.abort()
-            result.error_code, result.error_string = int(TrajectoryCode.INVALID_GOAL), f"INVALID_GOAL: {e}"
-            return result
-        t0, k, fb = time.monotonic(), 0, ExecuteTrajectory.Feedback()
-        feedback = FeedbackThrottle(float(self.param("feedback_hz")))
-        try:
-            while True:
-                if handle.is_cancel_requested:
-                    with self.lock:
-                        self.world.step(self.world.ee_pose(), None)  # hold where it is
-                    handle.canceled()
-                    result.error_code, result.error_string = int(TrajectoryCode.PATH_TOLERANCE_VIOLATED), "canceled"
-                    return result
-                out = {}
-                try:
-                    self._advance(lambda: out.update(r=self.world.step_trajectory()), StateHistory.Response.TRAJECTORY)
-                except SkillGenError as e:  # e.g. reset_scene while the trajectory ran
-                    self._report(e)
-                    handle.abort()
-                    result.error_code, result.error_string = int(TrajectoryCode.PATH_TOLERANCE_VIOLATED), str(e)
-                    return result
-                progress, q_des, done = out["r"]
-                if feedback.due(done is not None):
-                    fb.progress, fb.desired_positions = float(progress), [float(v) for v in q_des]
-                    fb.actual_positions = [float(v) for v in self.world.joint_positions()]
-                    handle.publish_feedback(fb)
-                if done is not None:
-                    result.error_code, result.error_string = int(done.code), done.message
-                    handle.succeed() if done.code == TrajectoryCode.SUCCESSFUL else handle.abort()
-                    return result
-                k += 1
-                self._wait_period(t0, k)
-        finally:
-            self.busy = False
-
-    def _exec_gripper(self, handle) -> Gripper.Result:
-        result, g = Gripper.Result(), handle.request
-        try:
-            V.finite("gripper position", g.position, reason="INVALID_GOAL")  # out of range: clamped below
-            V.finite("gripper max_effort", g.max_effort, reason="INVALID_GOAL")  # <= 0: the default 20 N
-            with self.lock:
-                self.world.gripper_to(g.position, g.max_effort if g.max_effort > 0 else 20.0)
-                self.busy = True
-        except SkillGenError as e:
-            self._report(e)
-            handle.abort()
-            result.width = float(self.world.gripper_width())
-            return result
-        t0, k, last = time.monotonic(), 0, -1.0
-        try:
-            while k < GRIPPER_WAIT_S * self.hz:
-                self._advance(lambda: self.world.idle(1), StateHistory.Response.GRIPPER)
-                width = float(self.world.gripper_width())
-                handle.publish_feedback(Gripper.Feedback(width=width))
-                if abs(width - last) < 2e-4:
-                    break
-                last, k = width, k + 1
-                self._wait_period(t0, k)
-        finally:
-            self.busy = False
-        width = float(self.world.gripper_width())
-        result.width, result.reached_goal = width, abs(width - min(max(g.position, 0.0), 0.08)) < 0.005
-        result.stalled = not result.reached_goal
-        handle.succeed()
-        return result
 
     def destroy_node(self):
         self.traj_server.destroy()

@@ -26,7 +26,8 @@ import venv
 
 from conftest import REPO
 
-PACKAGE_FILES = ("setup.py", "setup.cfg", "package.xml", "resource", "params", "launch", "skillgen_ros")
+PACKAGE_FILES = ("setup.py", "setup.cfg", "package.xml", "requirements-extras.txt", "resource", "params", "launch",
+                 "skillgen_ros")
 
 INNER_TEST = '''
 import os

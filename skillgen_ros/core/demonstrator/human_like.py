@@ -32,10 +32,9 @@ OPEN, CLOSED = -1.0, 1.0
 PIECE_GRASP_DEPTH = 0.02
 PIECE_TRAVEL = 0.30
 PIECE_DROP = 0.008
-# Coffee: grasp the pod this far below its top; let go once its bottom is this far into the holder (the finger
+# Coffee: grasp the pod at its "grasp" keypoint; let go once its bottom is this far into the holder (the finger
 # pads still above the holder's rim: the pod slides the rest of the way down the cup); push the open lid shut
-# from behind with the closed fingers this high above the hinge (machine frame z), along machine +y
-POD_GRASP_DEPTH = 0.008
+# from behind with the open hand at this height (machine frame z, 5.4 cm above the hinge), along machine +y
 POD_RELEASE_IN = 0.025
 LID_PUSH_Z, LID_PUSH_FROM, LID_PUSH_TO = 0.16, -0.03, 0.11
 
@@ -287,8 +286,8 @@ class ScriptedDemonstrator:
         pod, mach = self.task.object("coffee_pod"), self.task.object("coffee_machine")
         m = self.frames(world)["coffee_machine"]
         yaw = object_yaw(m) + np.pi / 2            # fingers across machine x, clear of the hinge and bracket
-        self.grasp_from_top(world, "coffee_pod", pod.keypoint("top"), yaw, np.pi,
-                            depth=POD_GRASP_DEPTH + self.rng.uniform(-0.002, 0.002))
+        self.grasp_from_top(world, "coffee_pod", pod.keypoint("grasp"), yaw, np.pi,
+                            depth=self.rng.uniform(-0.002, 0.002))
         self.lift(world, 0.30 + self.rng.uniform(0.0, 0.03))
         T_ep = self.object_in_hand(world, "coffee_pod")
         cur = self.frames(world)["coffee_pod"]
@@ -313,15 +312,15 @@ class ScriptedDemonstrator:
         self._close_lid(world, m)
 
     def _close_lid(self, world, m: Pose) -> None:
-        """From behind the open lid (machine -y), the closed fingers sweep along machine +y over the hinge:
-        the lid tips past upright and falls shut."""
-        q = self.cmd.quaternion
+        """From behind the open lid (machine -y), the open hand, its fingers in a row along machine y, sweeps
+        along machine +y over the hinge: the lid tips past upright and falls shut. No second close, so the
+        skill's gripper events stay one grasp and one release."""
+        q = down_pose(np.zeros(3), nearest_yaw(object_yaw(m), np.pi, ee_yaw(self.cmd))).quaternion
 
         def at(y: float, z: float) -> Pose:
             return Pose(m.rotation.apply([0.0, y, z]) + m.position, q)
         y0 = LID_PUSH_FROM + self.rng.uniform(-0.01, 0.0)
         self.move(world, at(y0, LID_PUSH_Z + 0.09), 1.2)
-        self.gripper(world, CLOSED, 0.4)
         self.move(world, at(y0, LID_PUSH_Z + self.rng.uniform(-0.005, 0.005)), 0.8, tremor=0.5)
         self.maybe_hesitate(world)
         self.move(world, at(LID_PUSH_TO, LID_PUSH_Z), 2.0, tremor=0.3)

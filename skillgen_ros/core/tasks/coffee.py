@@ -72,6 +72,7 @@ LID_CLOSED_TOLERANCE = np.radians(15.0)
 # the pod (coffee_pod.stl's convex hull, scale 0.018): a frustum from r 0.0205 at the bottom to r 0.0228 at
 # z 0.0201, a rim r 0.0243 up to the top: a cylinder of the mean radius plus the rim
 POD_BODY_R, POD_RIM_Z = 0.0217, 0.0201
+POD_GRASP_BELOW_TOP = 0.008   # ours: where the demonstrator's fingers close, on the pod's upper body
 
 
 def _holder_parts(centre: np.ndarray) -> tuple[Part, ...]:
@@ -121,7 +122,7 @@ def coffee_pod(obj_id: str = "coffee_pod") -> ObjectSpec:
     rim_half = (hz - POD_RIM_Z) / 2
     parts = (cylinder(POD_BODY_R, body_half, z=-hz + body_half), cylinder(POD_HALF[0], rim_half, z=hz - rim_half))
     mass = POD_DENSITY * sum(np.pi * p.size[0] ** 2 * 2 * p.size[1] for p in parts)
-    kp = {"body_origin": (0, 0, 0), "top": (0, 0, hz), "bottom": (0, 0, -hz)}
+    kp = {"body_origin": (0, 0, 0), "top": (0, 0, hz), "bottom": (0, 0, -hz), "grasp": (0, 0, hz - POD_GRASP_BELOW_TOP)}
     return _build(obj_id, "coffee_pod", parts, kp, fixture=False, symmetry="z_continuous", mass=float(mass),
                   color=(0.84, 0.84, 0.84, 1.0))
 

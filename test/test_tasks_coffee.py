@@ -42,7 +42,7 @@ def test_reference_geometry():
     inner = min(np.hypot(*(np.array(p.position[:2]) - C.HOLDER_POS[:2])) - p.size[0] for p in ring)
     assert inner == pytest.approx(0.025 * np.cos(np.pi / 64))
     assert inner - POD.half_extents[0] == pytest.approx(0.00067, abs=1e-5)
-    assert POD.half_extents == pytest.approx(C.POD_HALF) and POD.mass == pytest.approx(0.0069, abs=2e-4)
+    assert POD.half_extents == pytest.approx(C.POD_HALF) and POD.mass == C.POD_MASS == 0.05
     # closed lid clears the holder's top by 5 mm; a seated pod's top clears the lid's underside
     assert (C.LID_POS[2] - C.LID_HALF[2]) - (C.HOLDER_POS[2] + C.HOLDER_HALF_H) == pytest.approx(0.005)
     assert C.HOLDER_POS[2] + SEATED_Z + C.POD_HALF[2] < C.LID_POS[2] - C.LID_HALF[2]

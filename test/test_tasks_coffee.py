@@ -15,7 +15,7 @@ from skillgen_ros.core.robot import TABLE_CENTER_XY, TABLE_Z
 from skillgen_ros.core.tasks import SceneState, get_task
 from skillgen_ros.core.tasks import coffee as C
 from skillgen_ros.core.tasks.articulation import Joint, Link, joint_key, link_frames, validate_articulation
-from skillgen_ros.core.tasks.shapes import box
+from skillgen_ros.core.tasks.shapes import box, read_obj
 
 TASK = get_task("Coffee")
 M, POD = TASK.object("coffee_machine"), TASK.object("coffee_pod")
@@ -46,6 +46,10 @@ def test_reference_geometry():
     # closed lid clears the holder's top by 5 mm; a seated pod's top clears the lid's underside
     assert (C.LID_POS[2] - C.LID_HALF[2]) - (C.HOLDER_POS[2] + C.HOLDER_HALF_H) == pytest.approx(0.005)
     assert C.HOLDER_POS[2] + SEATED_Z + C.POD_HALF[2] < C.LID_POS[2] - C.LID_HALF[2]
+    # the mesh (what perception fits) shows the lid at its reset value, 120 deg open: 29.75 cm over the table
+    v, _ = read_obj(M.mesh_path)
+    assert v.max(0)[2] + M.half_extents[2] == pytest.approx(0.106 + 0.1105 + 0.088 * np.sin(np.radians(120))
+                                                            + 0.0095 * 0.5)
     assert [s.name for s in TASK.skills] == ["grasp_pod", "insert_pod_and_close_lid"]
     assert TASK.skills[1].attached_object == "coffee_pod" and TASK.skills[1].object_id == "coffee_machine"
 

@@ -153,3 +153,17 @@ def link_point(obj, pose: Pose, values: Mapping[str, float], link: str, keypoint
     T = link_frames(obj, pose, values)[link]
     lk = next(x for x in obj.links if x.name == link)
     return T[:3, :3] @ lk.keypoint(keypoint) + T[:3, 3]
+
+
+def posed_link_parts(links, joints) -> tuple[Part, ...]:
+    """The links' parts in the object frame, every joint at its reset value (for the object's mesh)."""
+    frames = {BASE: np.eye(4)}
+    for j in joints:
+        frames[j.child] = frames[j.parent] @ j.transform(j.initial)
+    out = []
+    for lk in links:
+        T = frames[lk.name]
+        for p in lk.parts:
+            R = Rotation.from_matrix(T[:3, :3]) * Rotation.from_quat(p.quaternion)
+            out.append(Part(p.kind, p.size, tuple(T[:3, :3] @ np.asarray(p.position) + T[:3, 3]), tuple(R.as_quat())))
+    return tuple(out)

@@ -37,6 +37,7 @@ EXPECTED_TOPICS = {
     "/ee_wrench": "geometry_msgs/msg/WrenchStamped",
     "/gripper_state": "skillgen_interfaces/msg/GripperState",
     "/sim/ground_truth/object_poses": "skillgen_interfaces/msg/ObjectPoseArray",
+    "/object_joint_states": "sensor_msgs/msg/JointState",
     "/osc_target": "skillgen_interfaces/msg/OscTarget",
     "/clock": "rosgraph_msgs/msg/Clock",
     "/driver/errors": "std_msgs/msg/String",

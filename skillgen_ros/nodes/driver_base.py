@@ -47,6 +47,7 @@ from skillgen_ros.core.sim.commands import validate_gripper, validate_osc_target
 from skillgen_ros.nodes import convert
 from skillgen_ros.nodes.driver_actions import DriverActions
 from skillgen_ros.nodes.driver_cameras import DriverCameras
+from skillgen_ros.nodes.driver_joints import ObjectJointStates
 from skillgen_ros.nodes.feedback import RESULT_TIMEOUT_S
 
 PARAMS = {  # name: (default, description)
@@ -127,6 +128,7 @@ class DriverNode(DriverActions, Node):
         self.pub_grip = pub(GripperState, "gripper_state", RELIABLE)
         self.pub_wrench = pub(convert.WrenchStamped, "ee_wrench", RELIABLE)
         self.pub_gt = pub(ObjectPoseArray, "sim/ground_truth/object_poses", LATCHED)
+        self.obj_joints = ObjectJointStates(pub, self.frame)  # object_joint_states (nodes/driver_joints.py)
         self.pub_err = pub(String, "driver/errors", RELIABLE)
         self.pub_clock = pub(Clock, "/clock", RELIABLE) if self.mode == "lockstep" else None
         self.cameras = DriverCameras([c for c in self.param("cameras") if c], self.frame, self.hz,
@@ -271,6 +273,7 @@ class DriverNode(DriverActions, Node):
             self.pub_gt.publish(ObjectPoseArray(header=header, objects=[
                 ObjectPose(id=oid, type=self._types[oid], pose=convert.pose_to_msg(p), confidence=1.0)
                 for oid, p in poses.items()]))
+        self.obj_joints.publish(w, stamp, force)
         if cameras:  # only cameras with a reader, even when forced: none is latched
             self.cameras.publish(w, stamp, bool(self.param("publish_points")))
 

@@ -32,6 +32,11 @@ OPEN, CLOSED = -1.0, 1.0
 PIECE_GRASP_DEPTH = 0.02
 PIECE_TRAVEL = 0.30
 PIECE_DROP = 0.008
+# Coffee: grasp the pod at its "grasp" keypoint; let go once its bottom is this far into the holder (the finger
+# pads still above the holder's rim: the pod slides the rest of the way down the cup); push the open lid shut
+# from behind with the open hand at this height (machine frame z, 5.4 cm above the hinge), along machine +y
+POD_RELEASE_IN = 0.025
+LID_PUSH_Z, LID_PUSH_FROM, LID_PUSH_TO = 0.16, -0.03, 0.11
 
 
 class ScriptedDemonstrator:
@@ -276,8 +281,54 @@ class ScriptedDemonstrator:
         seat = TABLE_Z + 2 * b.half_extents[2] + self.task.object("piece_2").half_extents[2]  # legs on the base
         self._insert_piece(world, "piece_2", "piece_1", np.pi, seat)
 
+    def _coffee(self, world) -> None:
+        """Grasp the pod from the top, lower it into the holder and let go, then push the lid shut."""
+        pod, mach = self.task.object("coffee_pod"), self.task.object("coffee_machine")
+        m = self.frames(world)["coffee_machine"]
+        yaw = object_yaw(m) + np.pi / 2            # fingers across machine x, clear of the hinge and bracket
+        self.grasp_from_top(world, "coffee_pod", pod.keypoint("grasp"), yaw, np.pi,
+                            depth=self.rng.uniform(-0.002, 0.002))
+        self.lift(world, 0.30 + self.rng.uniform(0.0, 0.03))
+        T_ep = self.object_in_hand(world, "coffee_pod")
+        cur = self.frames(world)["coffee_pod"]
+        top = m.rotation.apply(mach.keypoint("holder_top")) + m.position
+        aim = top[:2] + 0.3 * self.style.place_offset   # a careful aim: the cup has 3 mm around the pod
+
+        def pod_bottom_at(z: float) -> Pose:
+            return Pose(np.r_[aim, z + pod.half_extents[2]], cur.quaternion)
+
+        high = pod_bottom_at(cur.position[2] - pod.half_extents[2])
+        self.carry_object_to(world, "coffee_pod", high, T_ep, 1.0 + np.linalg.norm(high.position - cur.position) / 0.22)
+        above = pod_bottom_at(top[2] + 0.03 + self.rng.uniform(0.0, 0.02))
+        self.carry_object_to(world, "coffee_pod", above, T_ep, 1.0, tremor=0.3)
+        self.hold(world, 0.2)
+        T_ep = self.object_in_hand(world, "coffee_pod")   # look again before lowering it in
+        self.carry_object_to(world, "coffee_pod", above, T_ep, 0.4, tremor=0.2)
+        self.maybe_hesitate(world)
+        self.carry_object_to(world, "coffee_pod", pod_bottom_at(top[2] - POD_RELEASE_IN), T_ep, 1.2, tremor=0.1)
+        self.hold(world, 0.2)
+        self.gripper(world, OPEN, 0.5)
+        self.retreat(world, 0.12)
+        self._close_lid(world, m)
+
+    def _close_lid(self, world, m: Pose) -> None:
+        """From behind the open lid (machine -y), the open hand, its fingers in a row along machine y, sweeps
+        along machine +y over the hinge: the lid tips past upright and falls shut. No second close, so the
+        skill's gripper events stay one grasp and one release."""
+        q = down_pose(np.zeros(3), nearest_yaw(object_yaw(m), np.pi, ee_yaw(self.cmd))).quaternion
+
+        def at(y: float, z: float) -> Pose:
+            return Pose(m.rotation.apply([0.0, y, z]) + m.position, q)
+        y0 = LID_PUSH_FROM + self.rng.uniform(-0.01, 0.0)
+        self.move(world, at(y0, LID_PUSH_Z + 0.09), 1.2)
+        self.move(world, at(y0, LID_PUSH_Z + self.rng.uniform(-0.005, 0.005)), 0.8, tremor=0.5)
+        self.maybe_hesitate(world)
+        self.move(world, at(LID_PUSH_TO, LID_PUSH_Z), 2.0, tremor=0.3)
+        self.retreat(world, 0.10)
+
     PLANS: dict[str, Callable] = {"Square": _square, "NutAssembly": _nut_assembly, "PickPlace": _pick_place,
-                                  "Threading": _threading, "ThreePieceAssembly": _three_piece_assembly}
+                                  "Threading": _threading, "ThreePieceAssembly": _three_piece_assembly,
+                                  "Coffee": _coffee}
 
     def run(self, world, variant: str, scene_seed: int) -> DemoRollout:
         """Reset `world` to (task, variant, scene_seed), perform the task, return the recorded rollout."""

@@ -88,6 +88,8 @@ MIMICGEN_SPECS: dict[str, MimicGenSpec] = {
     "PickPlace": MimicGenSpec((10, 20), "nearest_neighbor_object", 3, select_src_per_subtask=True),
     # three_piece_assembly: random, [5, 10] for each of its 3 subtask ends
     "ThreePieceAssembly": MimicGenSpec((5, 10), "random"),
+    # coffee (generate_core_configs.py make_generators): random, [5, 10] for its grasp subtask, no source per subtask
+    "Coffee": MimicGenSpec((5, 10), "random"),
 }
 DEFAULT_SPEC = MimicGenSpec()  # a task MimicGen has no config for: its template defaults
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import InvalidInputError, SkillGenError
 from ..geometry import Pose
+from ..planning.articulated import link_boxes, part_box
 from ..planning.collision import AttachedObject, Box, CollisionModel
 from ..planning.occlusion import DepthView
 from ..planning.ik import IKSolver
@@ -65,17 +66,14 @@ def part_boxes(obj: ObjectSpec) -> list[tuple[np.ndarray, np.ndarray]]:
     object's bounding box when it has no parts."""
     if not obj.parts:
         return [(np.eye(4), np.asarray(obj.half_extents, float))]
-    out = []
-    for part in obj.parts:
-        h = part.size if part.kind == "box" else (part.size[0], part.size[0], part.size[1])
-        out.append((Pose(part.position, part.quaternion).matrix(), np.asarray(h, float)))
-    return out
+    return [part_box(part) for part in obj.parts]
 
 
-def object_boxes(obj: ObjectSpec, pose: Pose) -> list[Box]:
-    """Planner boxes for an object at `pose`: one per primitive part."""
+def object_boxes(obj: ObjectSpec, pose: Pose, joints=None) -> list[Box]:
+    """Planner boxes for an object at `pose`: one per primitive part, and an articulated object's links
+    at the scene's joint values ({joint_key: value}; planning/articulated.py)."""
     T = pose.matrix()
-    return [Box(obj.id, T @ Tp, h) for Tp, h in part_boxes(obj)]
+    return [Box(obj.id, T @ Tp, h) for Tp, h in part_boxes(obj)] + link_boxes(obj, pose, joints)
 
 
 def attached_from_parts(obj: ObjectSpec, T_ee_obj: np.ndarray, spacing: float = 0.01) -> AttachedObject:
@@ -199,7 +197,7 @@ class SimGenerationEnv:
             pose = poses.get(o.id) or self.scene.poses.get(o.id)
             if o.id == "obstacle" and self.cfg.perception != "ground_truth":
                 pose = self.scene.poses[o.id]  # scene geometry mode: the fixture map is known
-            boxes += object_boxes(o, pose)
+            boxes += object_boxes(o, pose, self.world.object_joints())  # the sim's joint state, as the driver's topic
         self.cm.set_boxes(boxes)
         self.cm.set_point_cloud(np.empty((0, 3)))
         return self._attachment(attached, poses)

@@ -19,6 +19,7 @@ from ..errors import InvalidInputError
 from ..geometry import Pose
 from ..robot import GRIPPER_MAX_WIDTH, Q_HOME, TABLE_Z
 from ..tasks import SceneDescription, SceneState, get_task, validate_seed
+from ..tasks.articulation import initial_joint_values
 from ..tasks.shapes import read_obj
 from . import camera as cam
 from .commands import TrajectoryCode, TrajectoryResult, validate_gripper, validate_osc_target, validate_trajectory
@@ -81,7 +82,8 @@ class MockWorld:
         gx, gy = np.meshgrid(np.linspace(0.2, 0.92, 37), np.linspace(-0.4, 0.4, 41))  # robosuite's table
         pts.append(np.c_[gx.ravel(), gy.ravel(), np.full(gx.size, TABLE_Z)])
         self._points = np.vstack(pts)
-        self.scene = SceneDescription(task, variant, seed, objects, dict(self._poses), self._q.copy())
+        self._joints = initial_joint_values(objects)   # kinematic: nothing moves a lid or drawer
+        self.scene = SceneDescription(task, variant, seed, objects, dict(self._poses), self._q.copy(), dict(self._joints))
         return self.scene
 
     # state ------------------------------------------------------------
@@ -109,9 +111,12 @@ class MockWorld:
     def object_poses(self) -> dict[str, Pose]:
         return dict(self._poses)
 
+    def object_joints(self) -> dict[str, float]:
+        return dict(getattr(self, "_joints", {}))
+
     def task_success(self) -> bool:
         return self.scene is not None and self.task.is_success(
-            SceneState(dict(self._poses), self._ee.position.copy(), float(self.gripper_command)))
+            SceneState(dict(self._poses), self._ee.position.copy(), float(self.gripper_command), self.object_joints()))
 
     # control ----------------------------------------------------------
     def gripper(self, command: float) -> None:

@@ -21,6 +21,7 @@ from ..robot import (ARM_JOINTS, CONTROL_HZ, EE_LINK, FINGER_JOINTS, GRIPPER_MAX
 from ..tasks import SceneDescription, SceneState, get_task, validate_seed
 from ..tasks.objects import center_of_mass
 from ..tasks.spec import ObjectSpec
+from . import articulation
 from . import camera as cam
 from .assets import lowpoly_panda_urdf
 from .commands import (Contact, JointTrajectory, TrajectoryCode, TrajectoryResult,  # noqa: F401
@@ -125,8 +126,9 @@ class SimWorld:
         p.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=100)
         self.bodies: dict[str, int] = {}
         self._com: dict[str, np.ndarray] = {}
+        self._articulated = {o.id: o for o in objects if o.joints}
         for o in objects:
-            self._com[o.id] = center_of_mass(o.parts) if o.mass > 0 else np.zeros(3)
+            self._com[o.id] = center_of_mass(o.parts) if o.mass > 0 and not o.joints else np.zeros(3)
             self.bodies[o.id] = self._spawn(o, poses[o.id])
         self.body_names = {v: k for k, v in self.bodies.items()} | {self.table: "table"}
         self.hand = FrankaHand(self.cfg.gripper_force, self.cfg.gripper_hold_force)
@@ -139,15 +141,9 @@ class SimWorld:
 
     def _spawn(self, o: ObjectSpec, pose: Pose) -> int:
         p = self.p
-        kinds = [p.GEOM_BOX if q.kind == "box" else p.GEOM_CYLINDER for q in o.parts]
-        common = dict(shapeTypes=kinds, halfExtents=[list(q.size) for q in o.parts],
-                      radii=[q.size[0] for q in o.parts], lengths=[2 * q.size[1] for q in o.parts])
-        frames = dict(collisionFramePositions=[list(q.position) for q in o.parts],
-                      collisionFrameOrientations=[list(q.quaternion) for q in o.parts])
-        col = p.createCollisionShapeArray(**common, **frames)
-        vis = p.createVisualShapeArray(**common, visualFramePositions=frames["collisionFramePositions"],
-                                       visualFrameOrientations=frames["collisionFrameOrientations"],
-                                       rgbaColors=[list(o.color)] * len(o.parts))
+        if o.joints or len(o.parts) > articulation.MAX_COMPOUND:  # a fixture with links (core/sim/articulation.py)
+            return articulation.spawn(p, o, pose)
+        col, vis = articulation.shape_arrays(p, o.parts, o.color)
         # createMultiBody takes the object (link) frame; get/resetBasePositionAndOrientation use the
         # inertial frame (offset by the centre of mass): _object_pose/_set_object_pose convert.
         body = p.createMultiBody(o.mass, col, vis, pose.position.tolist(), pose.quaternion.tolist(),
@@ -165,7 +161,8 @@ class SimWorld:
         self._build_scene(poses, objects)
         self.task = spec
         self._noise_rng = np.random.default_rng([seed, 1])
-        self.scene = SceneDescription(task, variant, seed, objects, self.object_poses(), self.joint_positions())
+        self.scene = SceneDescription(task, variant, seed, objects, self.object_poses(), self.joint_positions(),
+                                      self.object_joints())
         return self.scene
 
     # ------------------------------------------------------------------ state
@@ -219,16 +216,22 @@ class SimWorld:
         """True object-frame poses (origin at the bounding-box centre) of the scene objects."""
         return {oid: self._object_pose(oid) for oid in self.bodies}
 
+    def object_joints(self) -> dict[str, float]:
+        """Articulated objects' joint values {"<object>/<joint>": rad or m} (core/tasks/articulation.py)."""
+        return articulation.values(self.p, self.bodies, self._articulated)
+
     def scene_state(self) -> SceneState:
-        """What the task's success rule reads: true object poses, the EE position, the gripper command."""
-        return SceneState(self.object_poses(), self.ee_pose().position.copy(), float(self.hand.command))
+        """What the task's success rule reads: true object poses and joint values, the EE position, the gripper."""
+        return SceneState(self.object_poses(), self.ee_pose().position.copy(), float(self.hand.command),
+                          self.object_joints())
 
     def task_success(self) -> bool:
         return self.scene is not None and self.task.is_success(self.scene_state())
 
     def get_state(self) -> np.ndarray:
         """Flat state: [time, q(9), qd(9), per object (scene order): pos 3, quat 4, lin vel 3, ang vel 3,
-        gripper mode: command, finger target, finger force, commanded force, opening].
+        per articulated object's joint: value, velocity, gripper mode: command, finger target, finger
+        force, commanded force, opening].
 
         Object pose = object frame; velocities are those of the centre of mass (pybullet's base). The
         gripper mode is what the finger motors are doing (a grasp holds 20 N, an arrived opening
@@ -238,13 +241,14 @@ class SimWorld:
         for oid, b in self.bodies.items():
             lin, ang = self.p.getBaseVelocity(b)
             parts.append(np.concatenate([self._object_pose(oid).as_array(), lin, ang]))
+        parts.append(articulation.state(self.p, self.bodies, self._articulated))
         parts.append(self.hand.state())
         return np.concatenate(parts)
 
     def set_state(self, state) -> None:
         """Restore a get_state() vector (same scene); the controller then holds the restored pose."""
         s = np.asarray(state, float)
-        n = 1 + 18 + 13 * len(self.bodies) + HAND_STATE_SIZE
+        n = 1 + 18 + 13 * len(self.bodies) + articulation.state_size(self._articulated) + HAND_STATE_SIZE
         if s.shape != (n,) or not np.all(np.isfinite(s)):
             raise InvalidInputError(f"state must be {n} finite values for this scene, got shape {s.shape}")
         self.hand.set_state(s[-HAND_STATE_SIZE:])  # validates before anything moves
@@ -255,20 +259,23 @@ class SimWorld:
             o = s[19 + 13 * k: 32 + 13 * k]
             self._set_object_pose(oid, Pose(o[:3], o[3:7] / np.linalg.norm(o[3:7])))
             self.p.resetBaseVelocity(b, o[7:10].tolist(), o[10:13].tolist())
+        articulation.set_state(self.p, self.bodies, self._articulated, s[19 + 13 * len(self.bodies):])
         self.hand.apply(self.p, self.robot, self.fingers)
         self._hold_q = s[1:8].copy()
         self._osc_target = self.ee_pose()
         self._mode, self._traj = "joint_hold", None
 
-    def show_state(self, q, object_poses: Mapping[str, Pose]) -> None:
-        """Place the arm and fingers (q: 7 or 9 positions) and the objects kinematically, no physics:
-        a recorded step re-shown for rendering (core/dataset/render.py)."""
+    def show_state(self, q, object_poses: Mapping[str, Pose], joints: Mapping[str, float] | None = None) -> None:
+        """Place the arm and fingers (q: 7 or 9 positions), the objects and articulated objects' joints
+        ({"<object>/<joint>": value}, others kept) kinematically, no physics: a recorded step re-shown
+        for rendering (core/dataset/render.py), or a scene set up by hand."""
         q = np.asarray(q, float).reshape(-1)
         for j, v in zip(self.movable, q):
             self.p.resetJointState(self.robot, j, float(v), 0.0)
         for oid, pose in object_poses.items():
             if oid in self.bodies:
                 self._set_object_pose(oid, pose)
+        articulation.show(self.p, self.bodies, self._articulated, joints or {})
 
     # ------------------------------------------------------------------ control
     def _dynamics(self, q9, qd9):

@@ -6,7 +6,9 @@ square nut keeps our handle/wall (its hole and the peg already match robosuite).
 an ObjectSpec whose OBJ mesh (core/tasks/meshes/<type>.obj) is written from the same primitives the
 simulator uses. Keypoints name the features scripted solvers and success predicates need (object
 frame); "body_origin" is where the reference model's body origin lies (robosuite's nut bodies sit at
-the ring centre), the point reset regions and success rules are stated for.
+the ring centre), the point reset regions and success rules are stated for. An articulated object's mesh
+also shows its links at their reset values (what perception fits at the start of a task); its
+half_extents are its fixed base's.
 """
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .articulation import BASE, posed_link_parts
 from .shapes import Part, aabb, box, cylinder, recentre, write_obj
 from .spec import ObjectSpec
 
@@ -64,15 +67,17 @@ BIN_WALL_HEIGHT = 0.06
 
 
 def _build(obj_id: str, type_: str, parts: tuple[Part, ...], keypoints: dict, *, fixture: bool,
-           symmetry: str, mass: float, color, friction: float = 1.0) -> ObjectSpec:
+           symmetry: str, mass: float, color, friction: float = 1.0, links=(), joints=()) -> ObjectSpec:
+    """Recentre the (base) parts on their AABB, moving keypoints and base joints' origins with them."""
     parts, shift = recentre(parts)
     lo, hi = aabb(parts)
     kps = tuple((k, tuple(float(x) for x in np.asarray(v) + shift)) for k, v in keypoints.items())
+    joints = tuple(j.shifted(shift) if j.parent == BASE else j for j in joints)
     path = MESH_DIR / f"{type_}.obj"
-    write_obj(parts, path, type_)
+    write_obj(parts + posed_link_parts(links, joints), path, type_)
     return ObjectSpec(id=obj_id, type=type_, mesh_path=str(path), half_extents=tuple(float(x) for x in (hi - lo) / 2),
                       is_fixture=fixture, symmetry=symmetry, mass=0.0 if fixture else mass, parts=parts,
-                      color=tuple(color), friction=friction, keypoints=kps)
+                      color=tuple(color), friction=friction, keypoints=kps, links=tuple(links), joints=joints)
 
 
 def center_of_mass(parts: tuple[Part, ...]) -> np.ndarray:

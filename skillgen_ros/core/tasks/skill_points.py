@@ -2,7 +2,7 @@
 
 A nut is grasped by its handle, not its centre; a peg is approached at its top; the milk carton
 at its top, the bin at its floor, the needle at its handle, the tripod at its ring, an assembly piece 2 cm under its top and
-the piece below it at its top. One table,
+the piece below it at its top, the coffee pod 8 mm under its top and the machine at its pod holder's rim. One table,
 read by auto-annotation (the point a skill's start is measured to, cli/annotate.py), by teleop's
 status line (the distance from the hand to the next object of interest) and by the grasp
 pictures in docs/teleop.md (scripts/teleop_grasps.py).
@@ -21,6 +21,7 @@ SKILL_POINTS: dict[str, tuple[str, ...]] = {
     "PickPlace": ("top", "floor_center"),
     "Threading": ("handle", "ring_center"),
     "ThreePieceAssembly": ("grasp", "top", "grasp", "top"),
+    "Coffee": ("grasp", "holder_top"),
 }
 
 

@@ -20,6 +20,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import InvalidInputError, SkillGenError, UnknownVariantError
 from ..geometry import Pose
 from ..robot import TABLE_Z
+from .articulation import Joint, Link, validate_articulation
 from .shapes import Part
 
 MAX_SEED = 2**32 - 1
@@ -31,16 +32,21 @@ SYMMETRIES = ("none", "z2", "z4", "z_continuous")
 class SceneState:
     """What a success rule reads: true world poses of the objects, the EE (panda_grasptarget) position
     and the last gripper command (-1 open .. +1 closed). robosuite's nut rule needs the EE: a nut still
-    in the hand near its centre does not count (nut_assembly.py _check_success, r_reach < 0.6)."""
+    in the hand near its centre does not count (nut_assembly.py _check_success, r_reach < 0.6).
+    `joints`: articulated objects' joint values by articulation.joint_key ("coffee_machine/lid")."""
 
     poses: Mapping[str, Pose]
     ee_position: np.ndarray
     gripper: float = -1.0
+    joints: Mapping[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
 class ObjectSpec:
-    """A rigid object or fixture. mesh_path: OBJ in the object frame; half_extents: AABB half size."""
+    """A rigid object or fixture. mesh_path: OBJ in the object frame; half_extents: AABB half size.
+
+    An articulated object adds `links` moved by `joints` (core/tasks/articulation.py); `parts`,
+    `half_extents` and the mesh are its fixed base only."""
 
     id: str
     type: str
@@ -53,6 +59,12 @@ class ObjectSpec:
     color: tuple[float, float, float, float] = (0.6, 0.6, 0.6, 1.0)
     friction: float = 1.0
     keypoints: tuple[tuple[str, tuple[float, float, float]], ...] = field(repr=False, default=())
+    links: tuple[Link, ...] = field(repr=False, default=())
+    joints: tuple[Joint, ...] = field(repr=False, default=())
+
+    def __post_init__(self):
+        if self.links or self.joints:
+            validate_articulation(self.id, self.links, self.joints)
 
     def keypoint(self, name: str) -> np.ndarray:
         """A named point in the object frame (e.g. "handle", "ring_center", "tip")."""
@@ -194,6 +206,7 @@ class SceneDescription:
     objects: tuple[ObjectSpec, ...]
     poses: Mapping[str, Pose]
     joint_positions: np.ndarray
+    object_joints: Mapping[str, float] = field(default_factory=dict)  # articulated objects' joint values
 
 
 def validate_seed(seed) -> int:

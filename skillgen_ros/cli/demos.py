@@ -155,7 +155,8 @@ def record(task: str, seed: int, out: Path, variant: str = "D0", keep_failed: bo
                                   "-p", "publish_points:=false"])]
     try:
         topics = "[" + ",".join(f'"{t}"' for t in SOURCE_TOPICS) + "]"
-        procs.append(start("recorder", ["-p", f"output:={bag}", "-p", f"topics:={topics}"]))
+        # scene: /tf, the robot model and object markers too, so the demo opens as a 3D scene in Foxglove
+        procs.append(start("recorder", ["-p", f"output:={bag}", "-p", f"topics:={topics}", "-p", "scene:=true"]))
         print(f"recording {task}/{variant} seed {seed} into {bag} (node logs in {logs.dir}); keys and where "
               f"to grasp: docs/teleop.md (q quits and judges the demo); cameras: docs/foxglove/skillgen.json",
               flush=True)

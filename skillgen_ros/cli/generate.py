@@ -115,6 +115,14 @@ def _print_result(attempts, successes, failures: dict, paths: dict) -> None:
             print(f"{k:8s} {v}")
 
 
+def _html_next_to(report_md: str) -> str:
+    """report.html, written beside report.md (core/dataset/report_html.py), if the run wrote one."""
+    from skillgen_ros.core.dataset.report_html import REPORT_HTML
+
+    path = os.path.join(os.path.dirname(report_md), REPORT_HTML) if report_md else ""
+    return path if path and os.path.exists(path) else ""
+
+
 def _request(a):
     """The command line as a RunRequest (in-process and distributed runs)."""
     from skillgen_ros.core.generation.session import RunRequest
@@ -169,7 +177,7 @@ def run_in_process(a) -> int:
         env.close()
     _print_result(run.attempts, run.successes, {k: v for k, v in run.failures.items() if v},
                   {"dataset": run.dataset_path, "failed": run.failed_path, "report": run.report_path,
-                   "video": run.video_path})
+                   "html": run.html_path, "video": run.video_path})
     return 0
 
 
@@ -218,7 +226,7 @@ def run_graph(a) -> int:
             raise SkillGenError(res.message, reason=res.reason)
         _print_result(res.attempts, res.successes, {f.reason: f.count for f in res.failures},
                       {"dataset": res.dataset_path, "failed": res.failed_path, "report": res.report_path,
-                       "bag": res.bag_path, "logs": logs})
+                       "html": _html_next_to(res.report_path), "bag": res.bag_path, "logs": logs})
         if res.reason not in ("OK", "CANCELED"):
             print(f"run ended early: {res.reason}: {res.message}", file=sys.stderr)
             return 1

@@ -71,7 +71,7 @@ LATCHED = QoSProfile(depth=1, reliability=QoSReliabilityPolicy.RELIABLE,
 PARAMS = {  # name: (default, description)
     "default_timeout": (2.0, "planning budget (s) when the request's timeout is <= 0"),
     "ik_iterations": (2000, "goal IK budget in batch iterations (about 50 ms; machine-independent)"),
-    "ik_timeout": (0.5, "wall-time cap (s) on the goal IK (a safety net; the iterations bound it)"),
+    "ik_timeout": (5.0, "wall-time cap (s) on the goal IK (a safety net; the iterations bound it)"),
     "rrt_iterations": (100, "RRT-Connect budget in search iterations (machine-independent; the timeout caps it)"),
     "retreat_distance": (0.05, "retreat along the gripper's -z (m)"),
     "approach_distance": (0.05, "approach along the gripper's +z (m)"),

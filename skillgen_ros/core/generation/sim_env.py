@@ -37,7 +37,9 @@ COLLISION_SOURCES = ("scene", "cloud")
 class SimEnvConfig:
     perception: str = "estimate"
     collision: str = "scene"
-    plan_timeout: float = 2.0
+    # a wall-time cap only (iterations bound the IK and RRT): the datagen graph's timeout_plan, so a loaded
+    # machine cuts neither path's searches (2.0 did: the 300-attempt cluster run differed from serial)
+    plan_timeout: float = 10.0
     images: bool = False  # record 84x84 front and wrist RGB in observations
     image_size: int = 84
     camera_width: int = 128  # perception camera (estimate mode / cloud collisions): params/sim_driver.yaml's

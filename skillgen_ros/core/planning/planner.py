@@ -92,11 +92,12 @@ def _seed_like(v) -> bool:
 class MotionPlanner:
     def __init__(self, kin: PandaKinematics, ik: IKSolver, collision: CollisionModel,
                  retreat_distance: float = 0.05, approach_distance: float = 0.05,
-                 dt: float = 0.01, ik_timeout: float = 0.5, ik_iterations: int = 2000,
+                 dt: float = 0.01, ik_timeout: float = 5.0, ik_iterations: int = 2000,
                  ik_solutions: int = 4, velocity_scale: float = 1.0, seed: int | None = None,
                  rrt_iterations: int = 100):
         """ik_iterations: the goal IK's budget in batch iterations (2000 take about 50 ms on one
-        2020s core); ik_timeout only caps its wall time, so plans do not depend on CPU load.
+        2020s core); ik_timeout only caps its wall time (100x that, so a loaded machine does not
+        reach it), so plans do not depend on CPU load.
         rrt_iterations: RRT-Connect's budget in search iterations (1-12 ms each here; the searches
         of the datagen and planning benches and the tests need at most 19), capped by the request's
         timeout in the same way."""

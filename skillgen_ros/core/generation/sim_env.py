@@ -184,7 +184,7 @@ class SimGenerationEnv:
             # to the manipulated object (allowed contacts), as in the planner node.
             frame = self.world.render("front")
             boxes = [b for o in self.scene.objects if o.id in poses and o.id != attached
-                     for b in object_boxes(o, poses[o.id])]
+                     for b in object_boxes(o, poses[o.id], self.world.object_joints())]
             self.cm.set_boxes(boxes, as_obstacles=False)
             att = self._attachment(attached, poses)
             self.cm.set_point_cloud(frame.valid_points(), self_filter_q=self.world.joint_positions(), attached=att,

@@ -13,6 +13,8 @@ object grasped for a grasp skill, the target fixture for a place/insert skill.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..errors import UnknownTaskError
@@ -249,6 +251,16 @@ def get_task(name: str) -> TaskSpec:
     if name not in _CACHE:
         _CACHE[name] = _BUILDERS[name]()
     return _CACHE[name]
+
+
+def articulated_object(object_type: str, object_id: str) -> ObjectSpec | None:
+    """The articulated ObjectSpec of `object_type` (a SceneObject's type) under the scene's id, or None if no
+    task has an articulated object of that type: how a node that gets only a SceneObject poses its links."""
+    for name in _BUILDERS:
+        for o in get_task(name).objects:
+            if o.type == object_type and o.joints:
+                return o if o.id == object_id else replace(o, id=object_id)
+    return None
 
 
 def regions_markdown() -> str:

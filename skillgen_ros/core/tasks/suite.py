@@ -1,5 +1,5 @@
 """The task suite: Square, PickPlace, NutAssembly, Threading, ThreePieceAssembly (+ clutter variants of
-Square/PickPlace), and Coffee (IN_PROGRESS: no source demos yet).
+Square/PickPlace), and Coffee.
 
 Reset regions are robosuite's / MimicGen's placement initializers, to the millimetre, in our world
 frame (the Panda base, mounted as robosuite mounts it: core/robot.py). Those initializers give x/y
@@ -239,7 +239,7 @@ _BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_as
              "ThreePieceAssembly": _three_piece_assembly, "Coffee": _coffee}
 # Tasks get_task builds that have no shipped source demos and no demonstrator yet (issue 20): the simulator,
 # driver and planner take them; the CLI, datagen and the per-task checks over TASK_NAMES do not, until they do.
-IN_PROGRESS: tuple[str, ...] = ("Coffee",)
+IN_PROGRESS: tuple[str, ...] = ()
 TASK_NAMES: tuple[str, ...] = tuple(n for n in _BUILDERS if n not in IN_PROGRESS)
 _CACHE: dict[str, TaskSpec] = {}
 

@@ -142,7 +142,7 @@ class SimGenerationEnv:
             objects[held] = self.grasps.pose_now(held, ee.matrix())
         return Observation(ee_pose=ee, gripper=w.finger_positions(), joint_positions=q,
                            object_poses=objects, images=images, ee_wrench=w.ee_wrench(),
-                           true_object_poses=w.object_poses(), stamp_ns=_ns(w.time))
+                           true_object_poses=w.object_poses(), stamp_ns=_ns(w.time), object_joints=w.object_joints())
 
     def estimate_poses(self) -> dict[str, Pose]:
         if self.cfg.perception == "ground_truth":

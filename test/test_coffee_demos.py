@@ -1,7 +1,6 @@
 """Coffee's shipped source demos (bags/Coffee, made by `skillgen demos make --task Coffee`): ten annotated D0 bags
 from ten scenes with a 3-demo subset, skills as the task lists them, and one replayed open loop in the current sim
-to success with the lid shut (the full 10-demo replay: bench/source_demos with --tasks Coffee once Coffee leaves
-suite.IN_PROGRESS; measured 10/10)."""
+to success with the lid shut (the full 10-demo replay: bench/source_demos; measured 10/10)."""
 from __future__ import annotations
 
 from pathlib import Path

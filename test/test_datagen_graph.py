@@ -175,6 +175,24 @@ def test_a_three_piece_assembly_attempt_runs_through_the_graph(graph, tmp_path):
     assert all(p.proc.poll() is None for p in procs.values())
 
 
+def test_a_coffee_attempt_runs_through_the_graph(graph, tmp_path):
+    """The articulated task: the machine's lid is an obstacle at the driver's object_joint_states value in the
+    planner, estimated poses, the paper profile. Success is not required; the attempt is recorded with its HSP
+    labels and the lid angle at every step."""
+    _, procs, client = graph
+    res = _run(client, task="Coffee", attempts=1, seed=0, profile="paper", output_dir=str(tmp_path / "coffee"))
+    assert res.accepted and res.reason == "OK", res.message
+    assert res.attempts == 1
+    path = res.dataset_path if res.successes else res.failed_path
+    with h5py.File(path, "r") as f:
+        demo = f["data"][sorted(f["data"].keys())[0]]
+        for key in ("obs/coffee_machine_pose", "obs/coffee_pod_pose", "labels/mp_step", "labels/skill_index",
+                    "actions"):
+            assert key in demo, key
+        assert set(np.unique(demo["labels/skill_index"][:])) - {-1} <= {0, 1}
+    assert all(p.proc.poll() is None for p in procs.values())
+
+
 def test_skill_replay_loads_demos_ahead_and_says_why_not(graph, tmp_path):
     from skillgen_interfaces.srv import LoadDemos
 

@@ -189,3 +189,24 @@ def test_beliefs_along_a_skill_follow_the_hand_and_stay_where_released():
                         [-1] + [1] * (n - 1))
     xs = np.array([b["cube"].position[0] for b in out])
     assert np.all(xs[:CLOSE_PERIODS + 1] == 0.0) and np.all(np.diff(xs[CLOSE_PERIODS + 1:]) > 0.009)
+
+
+def test_articulated_joint_values_are_recorded_per_object(tmp_path):
+    """obs/<id>_joints: the lid angle at every step (NaN where a step had none); no key without joints."""
+    from dataclasses import replace
+
+    rec = EpisodeRecorder("ground_truth")
+    lid = "coffee_machine/lid"
+    _record(rec, [replace(_obs(0, 0.5, 0.51, 10), object_joints={lid: 2.09}), _obs(1, 0.5, 0.6, 20),
+                  replace(_obs(2, 0.5, 0.7, 30), object_joints={lid: 0.01})])
+    ep = rec.episode(True)
+    np.testing.assert_allclose(ep.obs["coffee_machine_joints"], [[2.09], [np.nan], [0.01]])
+    path = tmp_path / "j.hdf5"
+    with DatasetWriter(str(path), {"env_name": "Fake"}) as w:
+        w.append(ep, {"index": 0})
+    assert validate_dataset(str(path)).num_demos == 1
+    back, _ = read_episode(str(path), "demo_0")
+    np.testing.assert_array_equal(back.obs["coffee_machine_joints"], ep.obs["coffee_machine_joints"])
+    plain = EpisodeRecorder("ground_truth")
+    _record(plain, [_obs(0, 0.5, 0.51, 10)])
+    assert not any(k.endswith("_joints") for k in plain.episode(True).obs)

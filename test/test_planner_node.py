@@ -210,3 +210,50 @@ def test_a_bad_ik_budget_parameter_exits_with_a_reason(start_node, param):
     proc = start_node("planner", "--ros-args", "-p", param)
     assert proc.proc.wait(timeout=60) == 2
     assert "INVALID_PARAMETER" in proc.stop()
+
+
+def test_the_lid_is_an_obstacle_at_the_driver_joint_value(client):
+    """Coffee's machine in the request (type coffee_machine) and its lid angle on object_joint_states: the
+    lid blocks where it is now. Point-cloud source (perception's cloud, which drops the recognized machine,
+    here empty): a goal through the closed lid is refused and planned once the lid is open. Scene source (the
+    machine's base is its box): a goal where the open lid stands is refused and planned with the lid shut."""
+    from scipy.spatial.transform import Rotation
+
+    from skillgen_ros.core.geometry import Pose
+    from skillgen_ros.core.planning.articulated import link_boxes
+    from skillgen_ros.core.robot import TABLE_Z
+    from skillgen_ros.core.tasks import coffee as C
+    from skillgen_ros.core.tasks import get_task
+    from skillgen_ros.nodes.driver_joints import QOS, TOPIC
+
+    node, planner = client
+    cli = node.create_client(PlanToPose, "plan_to_pose")
+    assert cli.wait_for_service(timeout_sec=90.0)
+    m = get_task("Coffee").object("coffee_machine")
+    pose = Pose([0.56, -0.1, TABLE_Z + m.half_extents[2]], Rotation.from_euler("z", -np.pi / 6).as_quat())
+    machine = SceneObject(id=m.id, type=m.type, half_extents=list(m.half_extents), has_pose=True,
+                          pose=convert.pose_to_msg(pose), is_fixture=True)
+    lid, opened = "coffee_machine/lid", C.LID_OPEN
+    joints = node.create_publisher(JointState, TOPIC, QOS)
+    node.create_publisher(PointCloud2, "perception/obstacles", LATCHED).publish(
+        convert.points_to_cloud(np.empty((0, 3)), "world"))
+    down = (pose.rotation * Rotation.from_euler("z", np.pi / 2) * Rotation.from_euler("x", np.pi)).as_quat()
+    through_closed = pose.rotation.apply([C.HOLDER_POS[0], C.HOLDER_POS[1], C.LID_POS[2]]) + pose.position
+    open_lid = link_boxes(m, pose, {lid: opened})[0].pose[:3, 3]
+
+    def plans_to(xyz, source, angle, expected) -> bool:
+        """Publish the lid angle; plan until the answer is `expected` (the planner reads the newest value)."""
+        joints.publish(convert.joint_state([lid], [angle]))
+        seen = []
+        ok = wait_for(lambda: seen.append(_call(cli, _request(tuple(xyz), tuple(down), collision_source=source,
+                                                              objects=[machine])).status) or seen[-1] == expected,
+                      timeout=60.0, period=0.0)
+        assert ok, (xyz, angle, seen)
+        return True
+
+    cloud, scene = PlanToPose.Request.SOURCE_POINT_CLOUD, PlanToPose.Request.SOURCE_SCENE
+    assert plans_to(through_closed, cloud, 0.0, PlanToPose.Response.GOAL_IN_COLLISION)
+    assert plans_to(through_closed, cloud, opened, PlanToPose.Response.SUCCESS)
+    assert plans_to(open_lid, scene, opened, PlanToPose.Response.GOAL_IN_COLLISION)
+    assert plans_to(open_lid, scene, 0.0, PlanToPose.Response.SUCCESS)
+    assert planner.proc.poll() is None

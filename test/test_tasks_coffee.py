@@ -144,3 +144,19 @@ def test_region_positions_follow_mimicgen_placement_bounds():
             poses = TASK.sample_reset(v, rng)
             assert all(TASK.regions(v)[k].contains(p, obj=TASK.object(k)) for k, p in poses.items())
             assert poses["coffee_machine"].position[2] == pytest.approx(TABLE_Z + 0.1105)
+
+
+def test_the_deploy_goal_of_the_insertion_reads_the_lid():
+    """HSP deployment's early goal check (core/deploy/goals.py) on the insert-and-close skill: met with the pod
+    seated and the lid shut, not with the lid open, and not known (so not met) without a lid value."""
+    from skillgen_ros.core.deploy.goals import skill_goal_reached
+
+    skill = TASK.skills[1]
+    lid = joint_key("coffee_machine", "lid")
+
+    def reached(joints):
+        s = _state()
+        return skill_goal_reached(TASK, skill, s.poses, np.r_[FAR, 0, 0, 0, 1], 0.08, -1.0, joints)
+    assert reached({lid: 0.0})
+    assert not reached({lid: np.radians(20.0)})
+    assert not reached(None) and not reached({})

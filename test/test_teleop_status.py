@@ -72,10 +72,27 @@ def test_status_printer_on_a_pipe_prints_only_changes():
 
 
 def test_verdict_is_the_task_success_rule_on_the_last_step():
-    for name in ("Square", "Threading"):
+    for name in ("Square", "Threading", "Coffee"):
         path = expand_bag_paths([BAGS / name])[0]
         assert demo_verdict(path, get_task(name)).success
         assert not verdict_at(read_demo_arrays(path), get_task(name), 0).success  # the start is not done
+
+
+def test_coffee_is_judged_with_the_recorded_lid_angle():
+    """The rule reads the lid from the bag's object_joint_states: the demo's last step with its lid open again
+    fails, and a bag without the topic cannot be judged (it says which joints it lacks)."""
+    from dataclasses import replace
+
+    path, task = expand_bag_paths([BAGS / "Coffee"])[0], get_task("Coffee")
+    arrays = read_demo_arrays(path)
+    last = len(arrays.timestamps) - 1
+    assert verdict_at(arrays, task, last).success
+    lid = dict(arrays.object_joints)
+    lid["coffee_machine/lid"] = lid["coffee_machine/lid"].copy()
+    lid["coffee_machine/lid"][last] = 0.35   # 20 deg open
+    assert not verdict_at(replace(arrays, object_joints=lid), task, last).success
+    blind = verdict_at(replace(arrays, object_joints={}), task, last)
+    assert not blind.success and "coffee_machine/lid" in blind.detail and "object_joint_states" in blind.detail
 
 
 def test_a_failed_recording_leaves_the_folder_unless_kept(tmp_path, capsys, monkeypatch):

@@ -19,6 +19,9 @@ Only some cells again (the others and the extras stay as they are in the JSON):
 A new task's smoke (ThreePieceAssembly, 20 attempts a cell, paper profile) into its own JSON:
     .venv/bin/python bench/datagen/run.py --attempts 20 --workers 2 --tasks ThreePieceAssembly \
         --methods skillgen mimicgen --profiles paper --skip-extras --out bench/results/datagen_smoke_three_piece.json
+Coffee's smoke (20 attempts a cell, paper profile, ground truth; about 11 min on 2 shared cores):
+    .venv/bin/python bench/datagen/run.py --attempts 20 --workers 2 --tasks Coffee \
+        --methods skillgen mimicgen --profiles paper --skip-extras --out bench/results/datagen_smoke_coffee.json
 One extra part again, updating the JSON in place (e.g. the graph overhead: 3 pairs of 50 attempts):
     .venv/bin/python bench/datagen/run.py --only graph_overhead
 The D0 cells on other seeds, each into its own JSON (a check that a cell's gap to the paper is not noise):

@@ -2,8 +2,8 @@
 
 A cell is one (task, variant, method, augment, profile). Averages against the paper are taken only
 over cells both sides have, each beside the paper's mean over the same cells:
-- core: the paper's simulation variants we also run (Square, Threading, Nut Assembly, Three Piece Assembly
-  x D0-D2; the paper's 18 add Coffee and Coffee Prep, which this project does not have yet).
+- core: the paper's simulation variants we also run (Square, Threading, Nut Assembly, Three Piece Assembly,
+  Coffee x D0-D2; the paper's 18 add Coffee Prep, which this project does not have yet).
   The paper's own 18-variant averages (PAPER_18_AVERAGE) are quoted only as such.
 - clutter: the paper's clutter rows (Square D1/D2 clutter), never mixed into core.
 - margin: skillgen minus MimicGen over Square, Threading and Nut Assembly D1-D2 (paper: 80.1 vs
@@ -20,7 +20,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from skillgen_ros.core.dataset.paper import AVERAGE as PAPER_18_AVERAGE  # noqa: E402  (75.4 / 40.7 / 14.7)
 from skillgen_ros.core.dataset.paper import paper_rate  # noqa: E402
 
-CORE_TASKS = ("Square", "Threading", "NutAssembly", "ThreePieceAssembly")
+CORE_TASKS = ("Square", "Threading", "NutAssembly", "ThreePieceAssembly", "Coffee")
 CORE_VARIANTS = ("D0", "D1", "D2")
 MARGIN_CELLS = tuple((t, v) for t in ("Square", "Threading", "NutAssembly") for v in ("D1", "D2"))  # the 80.1 vs 32.4
 METHOD_KEYS = ("skillgen", "mimicgen", "skillgen+IA")

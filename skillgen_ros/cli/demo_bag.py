@@ -60,8 +60,13 @@ def step_messages(step, stamp: Time) -> list[tuple[str, object]]:
     cmd.header.stamp, cmd.header.frame_id = stamp, FRAME
     _pose(cmd.pose, step.target)
     cmd.gripper = float(step.gripper_command)
-    return [("joint_states", js), ("ee_pose", ee), ("gripper_state", gs),
-            ("sim/ground_truth/object_poses", op), ("osc_target", cmd)]
+    out = [("joint_states", js), ("ee_pose", ee), ("gripper_state", gs), ("sim/ground_truth/object_poses", op)]
+    if step.object_joints:  # articulated objects' joints, as the driver's object_joint_states
+        oj = JointState()
+        oj.header.stamp, oj.header.frame_id = stamp, FRAME
+        oj.name, oj.position = list(step.object_joints), [float(v) for v in step.object_joints.values()]
+        out.append(("object_joint_states", oj))
+    return out + [("osc_target", cmd)]
 
 
 def scene_record(rollout: DemoRollout, demo: str) -> dict[str, str]:
@@ -81,7 +86,9 @@ def write_demo_bag(path, rollout: DemoRollout, annotation: Annotation | None = N
                                       max_chunk_age_s=1e9, metadata_interval_s=1e9))
     try:
         for rel, typ in SOURCE_TOPICS.items():  # the demonstrator's poses are the sim's, not perception's
-            if rel not in skip_topics and rel != "perception/object_poses":
+            articulated = rel == "object_joint_states" and any(st.object_joints for st in rollout.steps)
+            if rel not in skip_topics and rel != "perception/object_poses" and (rel != "object_joint_states"
+                                                                               or articulated):
                 w.add_topic(TopicSpec("/" + rel, typ, (_RELIABLE,)))
         for step in rollout.steps:
             ns = T0_NS + int(round(step.time * 1e9))

@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 from .geometry import Pose
 from .robot import GRIPPER_MAX_WIDTH
 from .tasks import SceneState
+from .tasks.articulation import initial_joint_values
 from .tasks.skill_points import skill_point_name, skill_point_world
 
 KEY_NAMES = {" ": "space (gripper)", "w": "w (+x)", "s": "s (-x)", "a": "a (+y)", "d": "d (-y)", "r": "r (+z)",
@@ -130,6 +131,10 @@ def verdict_at(arrays, task, k: int) -> DemoVerdict:
     missing = sorted({o.id for o in task.objects} - set(poses))
     if missing:
         return DemoVerdict(False, n, f"the demo has no poses of {missing}")
-    state = SceneState(poses, np.asarray(arrays.ee_positions[k], float), float(arrays.gripper[k]))
+    joints = {name: float(v[k]) for name, v in arrays.object_joints.items()}
+    unknown = sorted(key for key in initial_joint_values(task.objects) if key not in joints)
+    if unknown:  # a lid's angle is part of the rule: a bag without object_joint_states cannot be judged
+        return DemoVerdict(False, n, f"the demo has no values of joints {unknown} (record object_joint_states)")
+    state = SceneState(poses, np.asarray(arrays.ee_positions[k], float), float(arrays.gripper[k]), joints)
     ok = task.is_success(state)
     return DemoVerdict(ok, n, f"{task.name}'s success rule on step {k} of {n}: {'met' if ok else 'not met'}")

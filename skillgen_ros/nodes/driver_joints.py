@@ -6,6 +6,7 @@ Latched like the ground-truth poses (reliable, transient local, depth 1), so a r
 (the planner, datagen) still gets the current values; published on every state the driver publishes
 while someone reads it, and always on a reset, with no names when the scene has no articulated object.
 In the sim the values are the simulator's; the kinematic mock keeps the reset's initial values.
+The reader side (`ObjectJointReader`) is the planner's: it poses articulated obstacles at these values.
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from typing import Callable
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from skillgen_ros.nodes import convert
+from skillgen_ros.nodes.latest import LatestMessage
 
 TOPIC = "object_joint_states"
 QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -30,3 +32,19 @@ class ObjectJointStates:
             return
         values = world.object_joints()
         self.pub.publish(convert.joint_state(list(values), list(values.values()), frame_id=self.frame, stamp=stamp))
+
+
+class ObjectJointReader:
+    """The newest `object_joint_states` as {name: value}, read on demand (nodes/latest.py): a node that
+    needs the values once per request is not woken every period."""
+
+    def __init__(self, owner):
+        self._latest, self._first = LatestMessage(owner, convert.JointState, TOPIC, QOS), True
+
+    def values(self) -> dict[str, float] | None:
+        """The latest values (the first call waits up to 1 s for the latched message); None if none came."""
+        m = self._latest.latest(1.0 if self._first else 0.0)
+        self._first = False
+        if m is None or len(m.name) != len(m.position):
+            return None
+        return {str(n): float(v) for n, v in zip(m.name, m.position)}

@@ -14,6 +14,12 @@ Interfaces (relative names):
   view through `camera/<name>/pose` and `camera/<name>/camera_info` of the same stamp (read
   the same way), and the space hidden behind what it saw is occupied, as in-process
   (CollisionModel.set_point_cloud(views=...); docs/planning.md).
+- reads the driver's `object_joint_states` (sensor_msgs/JointState, latched; nodes/driver_joints.py) on
+  demand when the scene has an articulated object (a SceneObject whose `type` is one in core/tasks with
+  joints, e.g. Coffee's machine): its links (the lid) are obstacles at the current joint values, as
+  boxes (SOURCE_SCENE) or as points on those boxes added to the cloud (SOURCE_POINT_CLOUD: perception's
+  obstacle cloud drops the recognized machine, lid included), and count as the object for allowed
+  contacts. No message: the joints are at their reset values (a warning). PlanToPose is unchanged.
 - publishes `planner/path_markers` (visualization_msgs/MarkerArray, latched) for Foxglove
 - action client `execute_trajectory` (skillgen_interfaces/action/ExecuteTrajectory)
 
@@ -44,15 +50,16 @@ from skillgen_ros.action_client import SafeActionClient as ActionClient
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy, qos_profile_sensor_data
-from geometry_msgs.msg import Point, PoseStamped
+from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import CameraInfo, JointState, PointCloud2
-from visualization_msgs.msg import Marker, MarkerArray
+from visualization_msgs.msg import MarkerArray
 
 from skillgen_interfaces.action import ExecuteTrajectory
 from skillgen_interfaces.msg import PhaseTiming
 from skillgen_interfaces.srv import PlanToPose
 from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
 from skillgen_ros.core.geometry import Pose, validate_pose
+from skillgen_ros.core.planning.articulated import box_points, scene_link_boxes
 from skillgen_ros.core.planning.collision import SHADOW_PX, AttachedObject, Box, CollisionModel
 from skillgen_ros.core.planning.ik import IKSolver
 from skillgen_ros.core.planning.kinematics import PandaKinematics
@@ -60,8 +67,11 @@ from skillgen_ros.core.planning.occlusion import DepthView
 from skillgen_ros.core.planning.planner import Mode, MotionPlanner, PlanStatus
 from skillgen_ros.core import validation as V
 from skillgen_ros.core.robot import ARM_JOINTS, Q_LOWER, Q_UPPER
+from skillgen_ros.core.tasks import articulated_object
 from skillgen_ros.nodes import convert
+from skillgen_ros.nodes.driver_joints import ObjectJointReader
 from skillgen_ros.nodes.latest import LatestMessage, wait_future
+from skillgen_ros.nodes.planner_markers import path_markers
 from skillgen_ros.nodes.runtime import run_node
 
 WORLD_FRAMES = ("", "world", "panda_link0")
@@ -150,6 +160,8 @@ class PlannerNode(Node):
         self._clouds: dict[str, LatestMessage] | None = None
         self._camera_meta: dict[str, LatestMessage] = {}
         self._joints: LatestMessage | None = None
+        self._articulated: dict = {}  # {id: ObjectSpec} of the scene's articulated objects (a lid, a drawer)
+        self._object_joints: ObjectJointReader | None = None  # the driver's object_joint_states, from the first
 
         state_group = ReentrantCallbackGroup()
         self.markers = self.create_publisher(MarkerArray, "planner/path_markers", LATCHED)
@@ -215,6 +227,18 @@ class PlannerNode(Node):
         T = convert.pose_from_msg(pose.pose).matrix()
         return DepthView.from_organized(points.reshape(msg.height, msg.width, 3), np.reshape(info.k, (3, 3)), T)
 
+    def _link_boxes(self, obstacles: dict[str, Box]) -> list[Box]:
+        """Articulated objects' links (a lid) at the driver's `object_joint_states` values: obstacles where
+        they are now. Without a value (no driver topic) a joint is at its reset value, with a warning."""
+        if not self._articulated:
+            return []
+        if self._object_joints is None:
+            self._object_joints = ObjectJointReader(self)
+        joints = self._object_joints.values()
+        if joints is None:
+            self.get_logger().warning("no object_joint_states: articulated links at their reset values")
+        return scene_link_boxes(self._articulated, obstacles, joints)
+
     # -- service -----------------------------------------------------------------------------
     def _on_plan(self, req: PlanToPose.Request, resp: PlanToPose.Response):
         t0 = time.perf_counter()
@@ -250,6 +274,8 @@ class PlannerNode(Node):
     def _plan(self, req):
         if len(req.objects):
             self._boxes = scene_boxes(req.objects)
+            self._articulated = {o.id: a for o in req.objects if o.id in self._boxes
+                                 for a in [articulated_object(o.type, o.id)] if a is not None}
         t = req.target.header.frame_id
         if t not in WORLD_FRAMES:
             raise InvalidInputError(f"target frame {t!r} unsupported (use world)")
@@ -283,12 +309,14 @@ class PlannerNode(Node):
                 raise InvalidInputError(f"attached object {req.attached_object!r} not in the scene")
             attached = AttachedObject.from_box(box.name, box.half_extents, np.linalg.inv(T0) @ box.pose)
         obstacles = {k: b for k, b in boxes.items() if attached is None or k != attached.name}
+        links = self._link_boxes(obstacles)
         if req.collision_source == PlanToPose.Request.SOURCE_SCENE:
-            self.cm.set_boxes(list(obstacles.values()))
+            self.cm.set_boxes(list(obstacles.values()) + links)
             self.cm.set_point_cloud(np.empty((0, 3)))
         else:
-            self.cm.set_boxes(list(obstacles.values()), as_obstacles=False)
+            self.cm.set_boxes(list(obstacles.values()) + links, as_obstacles=False)
             points, views = self._cloud()
+            points = np.vstack([points, box_points(links)])  # perception's cloud dropped the recognized machine
             self.cm.set_point_cloud(points, self_filter_q=q0, attached=attached,
                                     fill_below=bool(self.p["cloud_fill_below"]), views=views,
                                     shadow_px=float(self.p["cloud_shadow_px"]) or None)
@@ -314,40 +342,8 @@ class PlannerNode(Node):
 
     # -- output ------------------------------------------------------------------------------
     def _publish_markers(self, result):
-        if not self.markers.get_subscription_count():
-            return  # FK of every point and a few hundred Point messages per plan, for nobody
-        stamp = self.get_clock().now().to_msg()
-        ee = self.kin.fk_batch(result.trajectory.positions)[:, :3, 3]
-        colours = {"retreat": (1.0, 0.6, 0.0), "transit": (0.1, 0.6, 1.0),
-                   "transfer": (0.7, 0.2, 1.0), "approach": (0.2, 0.9, 0.2)}
-        wp_T = self.kin.fk_batch(result.joint_path)
-        wp_ee = wp_T[:, :3, 3]
-        arr = MarkerArray()
-        arr.markers.append(Marker(action=Marker.DELETEALL))
-        for i, (phase, a, b) in enumerate(result.segments):
-            m = Marker(ns="planner_path", id=i, type=Marker.LINE_STRIP, action=Marker.ADD)
-            m.header.frame_id, m.header.stamp = "world", stamp
-            m.pose.orientation.w = 1.0
-            m.scale.x = 0.005
-            m.color.r, m.color.g, m.color.b = colours.get(phase, (1.0, 1.0, 1.0))
-            m.color.a = 1.0
-            m.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in wp_ee[a:b + 1]]
-            arr.markers.append(m)
-            g = Marker(ns="planner_goal", id=i, type=Marker.ARROW, action=Marker.ADD)  # the segment's goal EE
-            g.header.frame_id, g.header.stamp = "world", stamp  # pose: the recorder makes it a TF frame
-            g.pose = convert.pose_to_msg(Pose.from_matrix(wp_T[b]))
-            g.scale.x, g.scale.y, g.scale.z = 0.06, 0.006, 0.006
-            g.color.r, g.color.g, g.color.b = colours.get(phase, (1.0, 1.0, 1.0))
-            g.color.a = 1.0
-            arr.markers.append(g)
-        m = Marker(ns="planner_ee", id=100, type=Marker.LINE_STRIP, action=Marker.ADD)
-        m.header.frame_id, m.header.stamp = "world", stamp
-        m.pose.orientation.w = 1.0
-        m.scale.x = 0.002
-        m.color.r = m.color.g = m.color.b = m.color.a = 1.0
-        m.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in ee[:: max(1, len(ee) // 200)]]
-        arr.markers.append(m)
-        self.markers.publish(arr)
+        if self.markers.get_subscription_count():  # else FK of every point and Point messages for nobody
+            self.markers.publish(path_markers(self.kin, result, self.get_clock().now().to_msg()))
 
     def _execute(self, traj_msg) -> tuple[bool, str]:
         if not self.exec_client.wait_for_server(timeout_sec=10.0):  # discovery can be slow

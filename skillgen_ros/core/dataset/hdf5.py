@@ -3,7 +3,7 @@
     data/                  attrs: total (int), env_args (JSON str)
       demo_N/              attrs: num_samples, method, index, scene_seed, source_demos, reason, ...
         obs/<key>          (T, ...)  robot0_eef_pos, robot0_eef_quat, robot0_gripper_qpos,
-                                     robot0_joint_pos, object, <id>_pose, [<camera>_image]
+                                     robot0_joint_pos, object, <id>_pose, [<id>_joints], [<camera>_image]
         actions            (T, 7)   normalized delta pose + gripper
         actions_abs        (T, 8)   absolute pose (xyz, xyzw) + gripper
         states, rewards, dones

@@ -17,6 +17,8 @@ import numpy as np
 from ..generation.episode import Episode
 from ..geometry import Pose
 from ..sim import camera as cam
+from ..tasks import get_task
+from ..tasks.articulation import recorded_joints
 
 VIDEO_SIZE = (640, 480)  # width, height: 480p, what the report's videos play at
 CONTROL_HZ = 20.0
@@ -61,12 +63,13 @@ class EpisodeRenderer:
         if steps == 0 or "robot0_joint_pos" not in obs or obs["robot0_joint_pos"].shape[1] != 7:
             return [self._rgb()], 1.0
         stride = frame_stride(steps, self.spec)
+        objects = get_task(task).objects
         frames = []
         for t in list(range(0, steps, stride)) + ([steps - 1] if (steps - 1) % stride else []):
             q = np.concatenate([obs["robot0_joint_pos"][t], obs["robot0_gripper_qpos"][t]])
             poses = {oid: Pose.from_array(obs[f"{oid}_pose"][t]) for oid in episode.object_ids
                      if f"{oid}_pose" in obs}
-            self.world.show_state(q, poses)
+            self.world.show_state(q, poses, recorded_joints(objects, obs, t))  # the lid where it was
             frames.append(self._rgb())
         return frames, CONTROL_HZ / stride
 

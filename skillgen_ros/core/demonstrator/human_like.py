@@ -56,7 +56,8 @@ class ScriptedDemonstrator:
         return dict(time=float(world.time), joint_names=ARM_JOINTS, joint_positions=world.joint_positions().copy(),
                     ee_pose=world.ee_pose().as_array(), gripper_width=float(world.gripper_width()),
                     gripper_grasping=bool(world.is_grasping()),
-                    object_poses={k: v.as_array() for k, v in world.object_poses().items()}, object_types=self.types)
+                    object_poses={k: v.as_array() for k, v in world.object_poses().items()}, object_types=self.types,
+                    object_joints=world.object_joints())
 
     def _send(self, world, target: Pose, gripper: float) -> None:
         obs = self._obs(world)

@@ -2,7 +2,8 @@
 
 One `DemoStep` per 20 Hz control period: the observation the command was computed from and the
 command itself. The CLI turns these into the source bag's messages (joint_states, ee_pose,
-gripper_state, sim/ground_truth/object_poses, then osc_target) stamped with the sim time.
+gripper_state, sim/ground_truth/object_poses, object_joint_states when the scene has articulated objects,
+then osc_target) stamped with the sim time.
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ class DemoStep:
     object_types: Mapping[str, str]  # id -> model name
     target: np.ndarray  # (7,) the OSC target commanded at this step
     gripper_command: float  # -1 open .. +1 closed
+    object_joints: Mapping[str, float] = field(default_factory=dict)  # "<id>/<joint>" -> value (Coffee's lid)
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from ..errors import InvalidInputError
 from ..geometry import Pose
 from ..robot import TABLE_Z
 from ..tasks import suite
@@ -40,11 +41,19 @@ def _placement(task: TaskSpec, held: str, fixture: str) -> Callable[[SceneState]
 
 
 def skill_goal_reached(task: TaskSpec, skill: SkillSpec, true_poses: Mapping[str, Pose], ee_pose: np.ndarray,
-                       gripper_width: float, gripper_command: float) -> bool:
-    """The skill's effect on the true state (see the module docstring)."""
+                       gripper_width: float, gripper_command: float,
+                       joints: Mapping[str, float] | None = None) -> bool:
+    """The skill's effect on the true state (see the module docstring); `joints`: articulated objects'
+    joint values (Coffee's lid). Without the values a rule needs, the goal is not known to be reached: the
+    skill runs on to its termination or budget, and the task's own success check decides."""
     if skill.mode == "transfer" and skill.attached_object:
-        state = SceneState(dict(true_poses), np.asarray(ee_pose[:3], float), float(gripper_command))
-        return gripper_command < 0 and _placement(task, skill.attached_object, skill.object_id)(state)
+        state = SceneState(dict(true_poses), np.asarray(ee_pose[:3], float), float(gripper_command), dict(joints or {}))
+        try:
+            return gripper_command < 0 and _placement(task, skill.attached_object, skill.object_id)(state)
+        except InvalidInputError as e:
+            if e.reason != "MISSING_JOINT_STATE":
+                raise
+            return False
     if skill.object_id not in true_poses:
         return False
     obj = task.object(skill.object_id)

@@ -183,7 +183,8 @@ class _Rollout:
             self.policy_s += time.perf_counter() - t
             return fired
         width = float(np.sum(self.obs.gripper))
-        return skill_goal_reached(self.task, skill, self.truth(), self.obs.ee_pose, width, self.gripper)
+        return skill_goal_reached(self.task, skill, self.truth(), self.obs.ee_pose, width, self.gripper,
+                                  self.obs.object_joints)
 
     def truth(self) -> dict:
         try:

@@ -51,6 +51,9 @@ class Observation:
     # the graph fills them in by `stamp_ns` after the attempt, EpisodeRecorder.resolve)
     true_object_poses: Mapping[str, np.ndarray] | None = None
     stamp_ns: int | None = None  # the state's time stamp (sim time in lockstep), ns; None = unknown
+    # articulated objects' joint values at this state ({"coffee_machine/lid": rad}, as the driver's
+    # object_joint_states names them); None = not known (the graph's history carries none yet)
+    object_joints: Mapping[str, float] | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "ee_pose", _pose7(self.ee_pose, "observation ee_pose"))
@@ -196,6 +199,17 @@ class EpisodeRecorder:
             out[f"{oid}_pose"] = a
         return out
 
+    def _joint_arrays(self) -> dict[str, np.ndarray]:
+        """obs/<id>_joints (T, J): each articulated object's joint values, its joints in the order the first
+        observation names them ("<id>/<joint>"); a step without values is NaN. None if no step has any."""
+        names = next((list(o.object_joints) for o in self._obs if o.object_joints), [])
+        out: dict[str, np.ndarray] = {}
+        for oid in dict.fromkeys(n.split("/", 1)[0] for n in names):
+            keys = [n for n in names if n.split("/", 1)[0] == oid]
+            out[f"{oid}_joints"] = np.array([[float((o.object_joints or {}).get(k, np.nan)) for k in keys]
+                                             for o in self._obs])
+        return out
+
     def episode(self, success: bool) -> Episode:
         T = len(self._actions)
         first = self._obs[0] if T else None
@@ -213,6 +227,7 @@ class EpisodeRecorder:
             for oid, poses in self._object_poses(ids).items():
                 obs[f"{oid}_pose"] = poses
             obs["object"] = np.concatenate([obs[f"{oid}_pose"] for oid in ids], axis=1) if ids else np.zeros((T, 0))
+            obs.update(self._joint_arrays())
             for cam in sorted(self._obs[0].images):
                 obs[f"{cam}_image"] = np.stack([np.asarray(o.images[cam], np.uint8) for o in self._obs])
             states = np.concatenate([obs["robot0_joint_pos"], obs["robot0_gripper_qpos"], ee, obs["object"]], axis=1)

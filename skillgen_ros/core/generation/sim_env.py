@@ -144,7 +144,7 @@ class SimGenerationEnv:
             objects[held] = self.grasps.pose_now(held, ee.matrix())
         return Observation(ee_pose=ee, gripper=w.finger_positions(), joint_positions=q,
                            object_poses=objects, images=images, ee_wrench=w.ee_wrench(),
-                           true_object_poses=w.object_poses(), stamp_ns=_ns(w.time))
+                           true_object_poses=w.object_poses(), stamp_ns=_ns(w.time), object_joints=w.object_joints())
 
     def estimate_poses(self) -> dict[str, Pose]:
         if self.cfg.perception == "ground_truth":
@@ -186,7 +186,7 @@ class SimGenerationEnv:
             # to the manipulated object (allowed contacts), as in the planner node.
             frame = self.world.render("front")
             boxes = [b for o in self.scene.objects if o.id in poses and o.id != attached
-                     for b in object_boxes(o, poses[o.id])]
+                     for b in object_boxes(o, poses[o.id], self.world.object_joints())]
             self.cm.set_boxes(boxes, as_obstacles=False)
             att = self._attachment(attached, poses)
             self.cm.set_point_cloud(frame.valid_points(), self_filter_q=self.world.joint_positions(), attached=att,

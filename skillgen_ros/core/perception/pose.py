@@ -51,6 +51,8 @@ class PoseParams:
     rest_on_table: bool = True       # clusters that reach the table rest on it (height from contact)
     rest_contact: float = 0.015      # "reaches the table": lowest points within this height
     fpfh_voxel: float = 0.005
+    large_radius: float = 0.14       # models with a wider footprint radius get shifted centre hypotheses
+    large_shift: float = 0.06        # +- this far in x and y (a grid max_correspondence apart)
 
 
 @dataclass(frozen=True)
@@ -120,20 +122,28 @@ class ClusterFitter:
 
     # ------------------------------------------------------------------ hypotheses
     def upright_hypotheses(self, model: ObjectModel) -> list[np.ndarray]:
-        """Yaws over one symmetry period, each placed at the cluster (top surfaces aligned)."""
+        """Yaws over one symmetry period, each placed at the cluster (top surfaces aligned). A large object
+        (footprint radius over large_radius: Coffee's 30 cm machine) seen from one side is a cluster whose
+        centre lies up to ~5 cm nearer the camera than the object's, beyond the coarse ICP's reach
+        (max_correspondence): its hypotheses also take centres on a grid within +-large_shift."""
         qu = self.q @ self.R_up  # cluster in the upright (table) frame
         c_xy = 0.5 * (qu[:, :2].min(axis=0) + qu[:, :2].max(axis=0))
         order = model.symmetry.order
         k = 1 if order == 0 else max(int(np.ceil(self.p.yaw_steps / order)), 1)
         period = 2 * np.pi if order == 0 else model.symmetry.yaw_period
         m_c = 0.5 * (model.lo + model.hi)
+        shifts = [np.zeros(2)]
+        if model.xy_radius > self.p.large_radius:  # a grid of centres, max_correspondence apart
+            g = np.arange(-self.p.large_shift, self.p.large_shift + 1e-9, self.p.max_correspondence)
+            shifts = [np.array([x, y]) for x in g for y in g]
         out = []
         for yaw in np.arange(k) * period / k:
             R = _rz(yaw)
-            t = np.empty(3)
-            t[:2] = c_xy - (R @ m_c)[:2]
-            t[2] = qu[:, 2].max() - model.hi[2] if self.table_z is None else self.table_z - model.lo[2]
-            out.append(self._to_world(R, t))
+            for shift in shifts:
+                t = np.empty(3)
+                t[:2] = c_xy - (R @ m_c)[:2] + shift
+                t[2] = qu[:, 2].max() - model.hi[2] if self.table_z is None else self.table_z - model.lo[2]
+                out.append(self._to_world(R, t))
         return out
 
     def global_hypotheses(self, model: ObjectModel, n: int = 2) -> list[np.ndarray]:

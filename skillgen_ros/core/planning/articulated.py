@@ -36,3 +36,24 @@ def link_boxes(obj, pose: Pose, joints: Mapping[str, float] | None = None) -> li
             Tp, h = part_box(part)
             out.append(Box(obj.id, frames[link.name] @ Tp, h))
     return out
+
+
+def box_points(boxes, spacing: float = 0.01) -> np.ndarray:
+    """Points on the faces of `boxes` at most `spacing` apart: links as a cloud obstacle (a planner whose
+    cloud lost them, e.g. perception's obstacle cloud, which drops a recognized object's points)."""
+    out = []
+    for b in boxes:
+        h = np.asarray(b.half_extents, float)
+        axes = [np.linspace(-x, x, max(2, int(np.ceil(2 * x / spacing)) + 1)) for x in h]
+        g = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+        g = g[np.any(np.isclose(np.abs(g), h), axis=1)]   # the faces only
+        out.append(g @ b.pose[:3, :3].T + b.pose[:3, 3])
+    return np.vstack(out) if out else np.empty((0, 3))
+
+
+def scene_link_boxes(articulated: Mapping[str, object], boxes: Mapping[str, Box],
+                     joints: Mapping[str, float] | None, skip: str | None = None) -> list[Box]:
+    """Link boxes of the articulated objects ({id: ObjectSpec}) placed at their scene boxes' poses (the
+    object frame) and the joint values; `skip` (the held object) and objects without a box get none."""
+    return [b for oid, obj in articulated.items() if oid in boxes and oid != skip
+            for b in link_boxes(obj, Pose.from_matrix(boxes[oid].pose), joints)]

@@ -39,6 +39,7 @@ SOURCE_TOPICS = {
     "osc_target": "skillgen_interfaces/msg/OscTarget",
     "sim/ground_truth/object_poses": "skillgen_interfaces/msg/ObjectPoseArray",
     "perception/object_poses": "skillgen_interfaces/msg/ObjectPoseArray",
+    "object_joint_states": "sensor_msgs/msg/JointState",  # articulated objects' joints (a lid), optional
 }
 REQUIRED_TOPICS = ("ee_pose", "osc_target")
 # Where a demo's object poses come from, in order of preference: what perception estimated during a
@@ -187,7 +188,7 @@ def read_demo_arrays(path, reader: BagReader | None = None) -> DemoArrays:
         if rows:
             joints = sample_and_hold(t_cmd, times, np.array(rows))
     scene = read_scene(reader)
-    return DemoArrays(
+    return DemoArrays(object_joints=_object_joints(reader, topics, t_cmd), 
         name=demo_name(path), source=src, timestamps=t_cmd - t_cmd[0],
         ee_positions=ee[:, :3], ee_quaternions=ee[:, 3:], gripper=grip,
         object_positions={k: v[:, :3] for k, v in objs.items()},
@@ -195,6 +196,17 @@ def read_demo_arrays(path, reader: BagReader | None = None) -> DemoArrays:
         action_positions=action[:, :3], action_quaternions=action[:, 3:], joint_positions=joints,
         variant=scene.variant if scene else "D0", scene_seed=scene.seed if scene else None,
         extra={"scene": scene})
+
+
+def _object_joints(reader: BagReader, topics: dict, t_cmd: np.ndarray) -> dict[str, np.ndarray]:
+    """"<id>/<joint>" -> (N,) from object_joint_states, sample-and-hold per name; {} without the topic."""
+    times: dict[str, list[float]] = {}
+    vals: dict[str, list[float]] = {}
+    for t, m in (_decode_all(reader, topics["object_joint_states"]) if "object_joint_states" in topics else ()):
+        for n, v in zip(m.name, m.position):
+            times.setdefault(n, []).append(t)
+            vals.setdefault(n, []).append(v)
+    return {n: sample_and_hold(t_cmd, times[n], np.array(vals[n])) for n in times}
 
 
 def read_annotation(path, reader: BagReader | None = None) -> Annotation | None:

@@ -41,6 +41,7 @@ class DemoArrays:
     variant: str = "D0"
     scene_seed: int | None = None
     extra: dict = field(default_factory=dict)
+    object_joints: dict = field(default_factory=dict)  # "<id>/<joint>" -> (N,) articulated objects' joint values
 
 
 def sample_and_hold(step_times: np.ndarray, sample_times: np.ndarray, values: np.ndarray) -> np.ndarray:

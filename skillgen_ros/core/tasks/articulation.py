@@ -167,3 +167,17 @@ def posed_link_parts(links, joints) -> tuple[Part, ...]:
             R = Rotation.from_matrix(T[:3, :3]) * Rotation.from_quat(p.quaternion)
             out.append(Part(p.kind, p.size, tuple(T[:3, :3] @ np.asarray(p.position) + T[:3, 3]), tuple(R.as_quat())))
     return tuple(out)
+
+
+def recorded_joints(objects, arrays: Mapping, k: int) -> dict[str, float]:
+    """{joint_key: value} at step k of recorded per-object arrays ({"<id>_joints": (T, J)}, joints in spec
+    order, as datasets' obs/<id>_joints hold them); objects or steps without values (NaN) give none."""
+    out = {}
+    for o in objects:
+        a = arrays.get(f"{o.id}_joints") if o.joints else None
+        if a is None:
+            continue
+        for j, v in zip(o.joints, np.asarray(a[k], float)):
+            if np.isfinite(v):
+                out[joint_key(o.id, j.name)] = float(v)
+    return out

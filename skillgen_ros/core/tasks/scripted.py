@@ -167,6 +167,8 @@ def grasp_pose(obj: ObjectSpec, pose: Pose, reference_yaw: float, params: Script
     if obj.type == "milk":
         point = pose.position + [0.0, 0.0, obj.half_extents[2] - params.milk_grasp_depth]
         period = np.pi / 2
+    elif obj.type == "coffee_pod":   # round: at the reference yaw itself; at its "grasp" keypoint, 8 mm under the top
+        return top_down(pose.rotation.apply(obj.keypoint("grasp")) + pose.position, reference_yaw)
     elif obj.type in PIECE_GRASP_PERIOD:   # across the piece's x (piece 1's ridge, piece 2's square knob)
         point = pose.rotation.apply(obj.keypoint("top")) + pose.position - [0.0, 0.0, params.piece_grasp_depth]
         period = PIECE_GRASP_PERIOD[obj.type]
@@ -182,12 +184,12 @@ def grasp_pose(obj: ObjectSpec, pose: Pose, reference_yaw: float, params: Script
     return top_down(point, yaw + turn)
 
 
-def pick(s: Scripter, obj_id: str) -> None:
+def pick(s: Scripter, obj_id: str, reference_yaw: float = 0.0) -> None:
     env, prm = s.env, s.params
     obj = next(o for o in env.scene.objects if o.id == obj_id)
     others = [(p.position[:2], o.footprint_radius) for o in env.scene.objects if o.id != obj_id
               for p in [env.object_poses()[o.id]]]
-    g = grasp_pose(obj, env.object_poses()[obj_id], 0.0, prm, others)
+    g = grasp_pose(obj, env.object_poses()[obj_id], reference_yaw, prm, others)
     s.travel(Pose(g.position + [0, 0, prm.approach_height], g.quaternion), _travel_z(env, prm, exclude=(obj_id,)))
     s.move(g, prm.slow_speed, gripper=-1.0)
     s.hold(prm.grasp_dwell, 1.0)
@@ -342,6 +344,41 @@ def _run(task: TaskSpec, s: Scripter, O: dict, env, prm: ScriptParams) -> None:
         pick(s, "piece_2")
         seat = TABLE_Z + 2 * b.half_extents[2] + p2.half_extents[2]
         carry(s, "piece_2", _seat_piece(p2, p1, seat, np.pi, env, prm))
+    elif task.name == "Coffee":
+        m, pod = O["coffee_machine"], O["coffee_pod"]
+        # fingers across machine x, clear of the hinge and the holder's bracket (as the demonstrator)
+        pick(s, "coffee_pod", nearest_equivalent(object_yaw(env.object_poses()[m.id]) + np.pi / 2, 0.0, np.pi))
+        carry(s, "coffee_pod", _pod_into_holder(pod, m, env), pre_offset=np.array([0.0, 0.0, 0.03]))
+        _close_lid(s, env.object_poses()[m.id])
+
+
+# Coffee: the pod is let go with its bottom this far into the holder (it slides the rest of the way down); the
+# open hand pushes the open lid shut from behind at this machine-frame height, along machine +y from / to
+# (as the human-like demonstrator, core/demonstrator/human_like.py)
+POD_RELEASE_IN = 0.025
+LID_PUSH_Z, LID_PUSH_FROM, LID_PUSH_TO = 0.16, -0.03, 0.11
+
+
+def _pod_into_holder(pod: ObjectSpec, machine: ObjectSpec, env) -> Callable[[Pose], Pose]:
+    def goal(pod_pose: Pose) -> Pose:
+        m = env.object_poses()[machine.id]
+        top = m.rotation.apply(machine.keypoint("holder_top")) + m.position
+        return Pose([*top[:2], top[2] - POD_RELEASE_IN + pod.half_extents[2]], pod_pose.quaternion)
+    return goal
+
+
+def _close_lid(s: Scripter, m: Pose) -> None:
+    """The open hand, fingers in a row along machine y, sweeps from behind the lid over the hinge: the lid
+    tips past upright and falls shut."""
+    q = top_down(np.zeros(3), nearest_equivalent(object_yaw(m), ee_yaw(s.target), np.pi)).quaternion
+
+    def at(y: float, z: float) -> Pose:
+        return Pose(m.rotation.apply([0.0, y, z]) + m.position, q)
+    s.lift_to(s.target.position[2] + 0.10)
+    s.move(at(LID_PUSH_FROM, LID_PUSH_Z + 0.09))
+    s.move(at(LID_PUSH_FROM, LID_PUSH_Z), s.params.slow_speed)
+    s.move(at(LID_PUSH_TO, LID_PUSH_Z), s.params.slow_speed)
+    s.lift_to(s.target.position[2] + 0.10)
 
 
 def with_params(**kw) -> ScriptParams:

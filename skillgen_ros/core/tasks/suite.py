@@ -1,5 +1,5 @@
 """The task suite: Square, PickPlace, NutAssembly, Threading, ThreePieceAssembly (+ clutter variants of
-Square/PickPlace), and Coffee (IN_PROGRESS: no source demos yet).
+Square/PickPlace), and Coffee.
 
 Reset regions are robosuite's / MimicGen's placement initializers, to the millimetre, in our world
 frame (the Panda base, mounted as robosuite mounts it: core/robot.py). Those initializers give x/y
@@ -12,6 +12,8 @@ Skill object_id is the skill's reference object (the frame its motion is express
 object grasped for a grasp skill, the target fixture for a place/insert skill.
 """
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -237,7 +239,7 @@ _BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_as
              "ThreePieceAssembly": _three_piece_assembly, "Coffee": _coffee}
 # Tasks get_task builds that have no shipped source demos and no demonstrator yet (issue 20): the simulator,
 # driver and planner take them; the CLI, datagen and the per-task checks over TASK_NAMES do not, until they do.
-IN_PROGRESS: tuple[str, ...] = ("Coffee",)
+IN_PROGRESS: tuple[str, ...] = ()
 TASK_NAMES: tuple[str, ...] = tuple(n for n in _BUILDERS if n not in IN_PROGRESS)
 _CACHE: dict[str, TaskSpec] = {}
 
@@ -249,6 +251,16 @@ def get_task(name: str) -> TaskSpec:
     if name not in _CACHE:
         _CACHE[name] = _BUILDERS[name]()
     return _CACHE[name]
+
+
+def articulated_object(object_type: str, object_id: str) -> ObjectSpec | None:
+    """The articulated ObjectSpec of `object_type` (a SceneObject's type) under the scene's id, or None if no
+    task has an articulated object of that type: how a node that gets only a SceneObject poses its links."""
+    for name in _BUILDERS:
+        for o in get_task(name).objects:
+            if o.type == object_type and o.joints:
+                return o if o.id == object_id else replace(o, id=object_id)
+    return None
 
 
 def regions_markdown() -> str:

@@ -30,6 +30,8 @@ from .occlusion import DepthView, hidden_space
 SPHERES_FILE = Path(__file__).with_name("panda_spheres.yaml")
 HAND = LINKS.index(HAND_LINK)
 ATTACHED = len(LINKS)  # group id of attached-object spheres
+FILL_XY_DIV = 2  # heightmap columns are voxel / FILL_XY_DIV wide (points every voxel up them)
+HIDDEN_REFINE = 2  # hidden cells left after certification are split into 8 and certified again
 SHADOW_PX = 4.0  # hidden space behind a surface, in pixel footprints (docs/planning.md: measured)
 
 
@@ -108,17 +110,18 @@ class _Spheres:
     group: np.ndarray  # LINKS index, or ATTACHED
 
 
-def heightmap_fill(P: np.ndarray, floor: float, voxel: float) -> np.ndarray:
-    """Voxel columns from `floor` (included: an object's bottom edge stands on it) up to the
-    highest point of each (x, y) cell."""
+def heightmap_fill(P: np.ndarray, floor: float, voxel: float, z_step: float | None = None) -> np.ndarray:
+    """Columns on a `voxel` (x, y) grid, points every `z_step` (default voxel) from `floor`
+    (included: an object's bottom edge stands on it) up to the highest point of each cell."""
+    z_step = voxel if z_step is None else z_step
     ij = np.floor(P[:, :2] / voxel).astype(np.int64)
     cells, inv = np.unique(ij, axis=0, return_inverse=True)
     top = np.full(len(cells), -np.inf)
     np.maximum.at(top, inv.reshape(-1), P[:, 2])
-    n = np.maximum(1, np.ceil((top - floor) / voxel).astype(np.int64)) + 1
+    n = np.maximum(1, np.ceil((top - floor) / z_step).astype(np.int64)) + 1
     rep = np.repeat(np.arange(len(cells)), n)
     k = np.arange(len(rep)) - np.repeat(np.cumsum(n) - n, n)
-    z = np.minimum(floor + k * voxel, top[rep])  # from the table itself up to the top
+    z = np.minimum(floor + k * z_step, top[rep])  # from the table itself up to the top
     xy = (cells[rep] + 0.5) * voxel
     return np.column_stack([xy, z])
 
@@ -177,7 +180,7 @@ class CollisionModel:
     def set_point_cloud(self, points, self_filter_q=None, attached: AttachedObject | None = None,
                         filter_pad: float = 0.02, fill_below: bool = False,
                         voxel: float = 0.01, views: Sequence[DepthView] = (),
-                        shadow_px: float | None = SHADOW_PX) -> int:
+                        shadow_px: float | None = SHADOW_PX, hidden_refine: int = HIDDEN_REFINE) -> int:
         """Use `points` (N,3, world) as obstacles; returns how many are kept.
 
         Dropped: non-finite points, the table top (z <= table_z + 5 mm; the table is the
@@ -211,12 +214,14 @@ class CollisionModel:
         if len(views) and self.table_z is not None:
             if self.cloud_margin < 0.5 * np.sqrt(3.0) * voxel:
                 raise InvalidInputError(f"cloud margin {self.cloud_margin} m does not cover a {voxel} m cell")
-            H = hidden_space(views, self.table_z, on_robot, voxel, shadow_px=shadow_px)
+            H = hidden_space(views, self.table_z, on_robot, voxel, shadow_px=shadow_px, refine=hidden_refine)
             if on_robot is not None and len(H):
                 H = H[~on_robot(H)]  # where the robot is, is its own space
             P = np.vstack([P, H])
         if fill_below and len(P) and self.table_z is not None:
-            P = heightmap_fill(P, self.table_z, voxel)
+            # columns half a cell wide: a point moves at most 3.5 mm sideways (a 1 cm grid moved a
+            # box's edge 7 mm out and refused goals the raw cloud allowed; bench/planning)
+            P = heightmap_fill(P, self.table_z, voxel / FILL_XY_DIV, z_step=voxel)
         self.cloud = P
         self._trees = {}
         return len(P)

@@ -155,9 +155,23 @@ def _shadow_samples(view: DepthView, is_robot, floor: float, voxel: float,
     return o + rays[idx] * t[:, None]
 
 
-def _candidates(samples: np.ndarray, floor: float, voxel: float) -> np.ndarray:
-    """Centres of the cells holding a sample."""
+def _candidates(samples: np.ndarray, floor: float, voxel: float, within=None) -> np.ndarray:
+    """Centres of the cells holding a sample; within=(centres, width): only inside those cells
+    (a whole number of these cells wide)."""
     ij = np.floor(samples / voxel).astype(np.int64)
+    if within is not None:
+        P, width = within
+        k = int(round(width / voxel))
+        parent = np.floor(P / width).astype(np.int64)
+        lo, hi = parent.min(axis=0), parent.max(axis=0)
+        inside = np.zeros(hi - lo + 1, bool)
+        inside[tuple((parent - lo).T)] = True
+        pj = np.floor_divide(ij, k) - lo
+        ok = np.all((pj >= 0) & (pj <= hi - lo), axis=1)
+        ok[ok] = inside[tuple(pj[ok].T)]
+        ij = ij[ok]
+        if not len(ij):
+            return np.empty((0, 3))
     lo = ij.min(axis=0)
     ij -= lo
     grid = np.zeros(ij.max(axis=0) + 1, bool)
@@ -194,8 +208,11 @@ def _certified_free(view: DepthView, C: np.ndarray, voxel: float, edge_px: int,
 def hidden_space(views: Sequence[DepthView], floor: float,
                  is_robot: Callable[[np.ndarray], np.ndarray] | None = None, voxel: float = 0.01,
                  edge_px: int = 1, slope_px: float = 2.0, max_shadow: float = 1.0,
-                 shadow_px: float | None = None) -> np.ndarray:
+                 shadow_px: float | None = None, refine: int = 1) -> np.ndarray:
     """(M,3) centres of the cells behind observed obstacle surfaces that no view saw free.
+
+    refine: times the cells left are split into 8 and those halves that hold a shadow sample
+    certified again; the cells returned are voxel / 2**refine wide.
 
     floor: the table plane (z); is_robot: (N,3) -> bool for points on the robot itself (they cast
     no shadow: the space behind the arm is the arm's own motion space). shadow_px: how deep the
@@ -206,7 +223,12 @@ def hidden_space(views: Sequence[DepthView], floor: float,
     if not len(samples):
         return np.empty((0, 3))
     C = _candidates(samples, floor, voxel)
-    keep = np.ones(len(C), bool)
-    for v in views:
-        keep[keep] = ~_certified_free(v, C[keep], voxel, edge_px, slope_px)
-    return C[keep]
+    for level in range(refine + 1):
+        if level:  # the half-size cells, inside a cell left, that hold a sample
+            C = _candidates(samples, floor, voxel / 2, within=(C, voxel))
+            voxel /= 2
+        keep = np.ones(len(C), bool)
+        for v in views:
+            keep[keep] = ~_certified_free(v, C[keep], voxel, edge_px, slope_px)
+        C = C[keep]
+    return C

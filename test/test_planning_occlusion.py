@@ -187,6 +187,14 @@ def test_bad_depth_views_are_refused_with_a_reason(bad):
     assert e.value.reason == "INVALID_INPUT"
 
 
+@pytest.mark.parametrize("refine", [-1, 4, 1.5, None])
+def test_a_bad_refine_is_refused_with_a_reason(scene, refine):
+    view, _ = scene
+    with pytest.raises(InvalidInputError) as e:
+        hidden_space([view], floor=0.0, refine=refine)
+    assert e.value.reason == "INVALID_INPUT"
+
+
 def test_a_cloud_margin_smaller_than_a_hidden_cell_is_refused(scene, kin):
     view, pts = scene
     thin = CollisionModel(kin, table_z=0.0, cloud_margin=0.004)

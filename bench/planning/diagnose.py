@@ -1,13 +1,19 @@
-"""Why a point-cloud goal is refused: replay chosen problems of bench/planning/run.py and name the
-cloud cells that block collision-free (ground-truth) goal configurations.
+"""Why a point-cloud goal is refused: replay chosen problems of bench/planning/run.py and name what
+blocks goal configurations the ground truth allows.
 
-For each problem: the goal's IK solutions (no collision filter), each checked against the ground
-truth (pybullet meshes), the cloud without the hidden space, and the hidden cells. For each hidden
-cell that blocks a configuration the ground truth allows: is it seen by some camera (a ray from the
-camera to the cell's centre reaches it: the certification missed it), or truly hidden, and then how
-far behind the occluder's surface along that ray (depth) and how far from the nearest box.
+For each problem: 40 IK solutions of the goal (no collision filter), each checked against the
+ground truth (pybullet meshes), the cloud without the hidden space, and with it. A configuration
+that is truly free but blocked by the cloud alone is a tight goal (the 1 cm margin, the spheres'
+overshoot); one blocked only with the hidden space names the hidden cells in its way: for each,
+which camera sees its centre (a ray from the camera reaches it, the robot at the start), which
+occludes it (and by what), whether the camera's certification window holds a nearer surface (the
+cell is within a pixel or two of a silhouette: the uncertain band), and its distance to the
+nearest true box.
 
-    python bench/planning/diagnose.py --problems 1:10,1:48 [--shadow-px 4]
+    python bench/planning/diagnose.py --problems 1:10,3:44 [--hidden-refine 2]
+
+Problems are rebuilt from the seed as run.py builds them; the goal IK differs from the bench's
+(its own rng), so this explains refusals, it does not replay the bench's exact plan.
 """
 from __future__ import annotations
 
@@ -22,18 +28,19 @@ from collections import Counter  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from scipy.spatial import cKDTree  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 from bench.planning.run import GroundTruth, make_problem  # noqa: E402
-from skillgen_ros.core.planning.collision import CollisionModel, heightmap_fill  # noqa: E402
+from skillgen_ros.core.planning.collision import HIDDEN_REFINE, CollisionModel  # noqa: E402
 from skillgen_ros.core.planning.ik import IKSolver  # noqa: E402
 from skillgen_ros.core.planning.kinematics import PandaKinematics  # noqa: E402
 from skillgen_ros.core.planning.occlusion import hidden_space  # noqa: E402
 from skillgen_ros.core.sim import camera as cam  # noqa: E402
 
 
-def gt_clearance(gt, q):
+def gt_clearance(gt, q) -> float:
     """Smallest distance (m) robot - boxes/table (negative = penetration), up to 5 cm."""
     gt.set_q(q)
     best = 0.05
@@ -45,61 +52,30 @@ def gt_clearance(gt, q):
     return best
 
 
-def cell_report(gt, views, names, cell, boxes):
-    """(visible_from, occluders, depth behind the occluder, distance to the nearest box)."""
-    seen, occ, depth = [], [], []
-    for v, name in zip(views, names):
-        u, vv, z = v.project(cell[None])
-        h, w = v.depth.shape
-        if not (z[0] > 0 and 0 <= u[0] < w and 0 <= vv[0] < h):
-            continue
-        o = v.T_world_camera[:3, 3]
-        hit = gt.p.rayTest(o.tolist(), cell.tolist())[0]
-        if hit[0] < 0 or hit[2] > 0.999:
-            seen.append(name)
-        else:
-            body = hit[0]
-            who = "table" if body == gt.table else "robot" if body == gt.robot else f"box{gt.boxes.index(body)}"
-            occ.append(f"{name}:{who}")
-            depth.append(np.linalg.norm(cell - np.asarray(hit[3])))
-    d_box = min(signed_box_distance(b, cell) for b in boxes)
-    return seen, occ, depth, d_box
-
-
-def signed_box_distance(b, x):
+def signed_box_distance(b, x) -> float:
     local = np.abs((x - b.pose[:3, 3]) @ b.pose[:3, :3]) - b.half_extents
     return float(np.linalg.norm(np.maximum(local, 0)) + min(local.max(), 0))
 
 
-def certify_detail(v, c, voxel=0.01, slope_px=2.0):
-    """Why a view does (not) certify cell c: the window of occlusion._certified_free and the
-    enclosing pixel block of the cell's projected corners."""
-    u, vv, z = v.project(c[None])
+def view_of_cell(gt, v, cell, width, edge_px=1):
+    """'out', or (seen centre: bool, occluder name or None, nearer surface in the window: bool)."""
+    u, vv, z = v.project(cell[None])
     h, w = v.depth.shape
+    if not (z[0] > 0 and 0 <= u[0] < w and 0 <= vv[0] < h):
+        return "out"
+    hit = gt.p.rayTest(v.T_world_camera[:3, 3].tolist(), cell.tolist())[0]
+    occ = None
+    if hit[0] >= 0 and hit[2] < 0.999:
+        occ = "table" if hit[0] == gt.table else "robot" if hit[0] == gt.robot else f"box{gt.boxes.index(hit[0])}"
     f = float(max(v.K[0, 0], v.K[1, 1]))
-    half = 0.5 * np.sqrt(3.0) * voxel
-    if not (z[0] > half and 0 <= u[0] < w and 0 <= vv[0] < h):
-        return "out of view"
-    z = z[0]
-    foot = int(np.ceil(half * f / (z - half))) + 1
-    need = z + half + slope_px * z / f
-    seen = np.nan_to_num(v.depth, nan=0.0)
+    half = 0.5 * np.sqrt(3.0) * width
+    r = int(np.ceil(half * f / (z[0] - half))) + edge_px
     ui, vi = int(u[0]), int(vv[0])
-    win = seen[max(0, vi - foot):vi + foot + 1, max(0, ui - foot):ui + foot + 1]
-    corners = c + 0.5 * voxel * np.array([[a, b, d] for a in (-1, 1) for b in (-1, 1) for d in (-1, 1)])
-    pc = (corners - v.T_world_camera[:3, 3]) @ v.T_world_camera[:3, :3]
-    uc = v.K[0, 0] * pc[:, 0] / pc[:, 2] + v.K[0, 2]
-    vc = v.K[1, 1] * pc[:, 1] / pc[:, 2] + v.K[1, 2]
-    u0, u1 = int(np.floor(uc.min())), int(np.ceil(uc.max()))
-    v0, v1 = int(np.floor(vc.min())), int(np.ceil(vc.max()))
-    enc = seen[max(0, v0):v1 + 1, max(0, u0):u1 + 1]
-    need_half = pc[:, 2].max() + slope_px * z / f
-    return (f"z={z:.3f} foot={foot} win_min={win.min():.3f} need={need:.3f} "
-            f"| enclosing {u1 - u0 + 1}x{v1 - v0 + 1} min={enc.min():.3f} need(corners)={need_half:.3f} "
-            f"need0={pc[:, 2].max():.3f}")
+    win = np.nan_to_num(v.depth, nan=0.0)[max(0, vi - r):vi + r + 1, max(0, ui - r):ui + r + 1]
+    return occ is None, occ, bool(win.min() < z[0] + half)
 
 
-def diagnose(seed, i, problem, kin, gt, cfgs, shadow_px):
+def diagnose(seed, i, problem, kin, gt, cfgs, refine):
     boxes, start, goal = problem
     gt.set_boxes(boxes)
     cm = CollisionModel(kin, table_z=GroundTruth.TABLE_TOP_Z)
@@ -107,68 +83,58 @@ def diagnose(seed, i, problem, kin, gt, cfgs, shadow_px):
     pts, views = gt.cloud(start, cfgs)
     names = [c.name for c in cfgs]
     cm.set_point_cloud(pts, self_filter_q=start, fill_below=True)
-    no_hidden = cm.cloud.copy()
-    cm.set_point_cloud(pts, self_filter_q=start, fill_below=True, views=views, shadow_px=shadow_px)
+    surfaces = cm.cloud.copy()
+    cm.set_point_cloud(pts, self_filter_q=start, fill_below=True, views=views, hidden_refine=refine)
     full = cm.cloud.copy()
-    # the hidden cells alone (as set_point_cloud computes them)
     C, R = cm._spheres_world(np.asarray(start, float).reshape(1, 7))[:2]
-    from scipy.spatial import cKDTree
 
     def on_robot(X):
         hit = np.zeros(len(X), bool)
         for k in cKDTree(X).query_ball_point(C[0], R + 0.02):
             hit[k] = True
         return hit
-    H = hidden_space(views, cm.table_z, on_robot, 0.01, shadow_px=shadow_px)
+    H = hidden_space(views, cm.table_z, on_robot, 0.01, shadow_px=4.0, refine=refine)
     H = H[~on_robot(H)] if len(H) else H
-    ik = IKSolver(kin, rng=0)
-    sols = ik.solve(goal, seed_q=start, timeout=5.0, max_solutions=40, max_iterations=8000).solutions
-    out = Counter()
-    blockers = {}
+    width = 0.01 / 2 ** refine
+    sols = IKSolver(kin, rng=0).solve(goal, seed_q=start, timeout=5.0, max_solutions=40,
+                                      max_iterations=8000).solutions
+    tally, blockers = Counter(), {}
     for q in sols:
         clear = gt_clearance(gt, q)
-        cm.cloud = no_hidden
-        cm._trees = {}
-        free_nh = not cm.in_collision(q[None])[0]
-        cm.cloud = full
-        cm._trees = {}
-        free_full = not cm.in_collision(q[None])[0]
-        tag = ("gt_hit" if clear <= 0 else "gt_free") + ("/nohidden_free" if free_nh else "/nohidden_hit") \
-            + ("/full_free" if free_full else "/full_hit")
-        out[tag] += 1
-        if clear > 0 and free_nh and not free_full:
+        free = []
+        for cloud in (surfaces, full):
+            cm.cloud, cm._trees = cloud, {}
+            free.append(not cm.in_collision(q[None])[0])
+        tally[("truly free" if clear > 0 else "truly hit") + (", surfaces free" if free[0] else ", surfaces hit")
+              + (", hidden free" if free[1] else ", hidden hit")] += 1
+        if clear > 0 and free[0] and not free[1]:
             Cq, Rq, _ = cm._spheres_world(q[None])
-            tree = cKDTree(Cq[0])
-            for k, c in enumerate(H):
-                dd, j = tree.query(c)
-                if np.any(np.linalg.norm(Cq[0] - c, axis=1) < Rq + cm.cloud_margin):
-                    blockers[tuple(np.round(c, 3))] = c
-        elif clear > 0 and not free_nh:
-            # which observed/fill points block it: near which box, how far out
-            Cq, Rq, _ = cm._spheres_world(q[None])
-            P = no_hidden
-            d = np.linalg.norm(P[:, None, :] - Cq[0][None], axis=2) - Rq[None]
-            hit = np.any(d < cm.cloud_margin, axis=1)
-            db = [min(signed_box_distance(b, p) for b in boxes) for p in P[hit]]
-            out[f"nohidden_blocker_box_dist_max={max(db):.3f}" if db else "self/table (no cloud point)"] += 1
-    print(f"seed {seed} problem {i}: {len(sols)} IK solutions, hidden cells {len(H)}; {dict(out)}")
+            d = np.linalg.norm(full[:, None, :] - Cq[0][None], axis=2) - Rq[None] - cm.cloud_margin
+            for p in full[np.any(d < 0, axis=1)]:
+                # the hidden cell that put this point there: itself, or the one its column fills down from
+                col = np.all(np.abs(H[:, :2] - p[:2]) <= 0.5 * width + 0.0026, axis=1) & (H[:, 2] >= p[2] - 1e-9)
+                for c in H[col][:1] if col.any() else ():
+                    blockers[tuple(np.round(c, 4))] = c
+    print(f"seed {seed} problem {i}: {len(sols)} goal IK solutions: {dict(tally)}")
+    gt.set_q(start)  # the cameras saw the scene with the robot at the start
     causes = Counter()
     for c in blockers.values():
-        seen, occ, depth, d_box = cell_report(gt, views, names, c, boxes)
-        key = ("seen by " + "+".join(seen)) if seen else "hidden"
-        causes[key] += 1
-        print(f"   cell {np.round(c, 3)} seen={seen} occluded={occ} depth={np.round(depth, 3)} "
-              f"box_dist={d_box:.3f}")
-        for v, name in zip(views, names):
-            print("      ", name, certify_detail(v, c))
-    print(f"   blockers: {dict(causes)}")
+        per = {n: view_of_cell(gt, v, c, width) for v, n in zip(views, names)}
+        d_box = min(signed_box_distance(b, c) for b in boxes)
+        seen = [n for n, r in per.items() if r != "out" and r[0]]
+        band = [n for n, r in per.items() if r != "out" and r[0] and r[2]]
+        occl = [f"{n}:{r[1]}" for n, r in per.items() if r != "out" and not r[0]]
+        cause = (f"seen by {'+'.join(seen)}, in the silhouette band of {'+'.join(band)}" if seen and band
+                 else f"seen by {'+'.join(seen)}" if seen else f"hidden ({', '.join(occl) or 'out of view'})")
+        causes[cause] += 1
+        print(f"   cell {np.round(c, 4)} box {d_box * 1e3:5.1f} mm  {per}")
+    print(f"   blocking hidden cells: {dict(causes)}")
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--problems", required=True, help="seed:index,... e.g. 1:10,3:44")
-    ap.add_argument("--n", type=int, default=100, help="problems per seed in the bench run")
-    ap.add_argument("--shadow-px", type=float, default=4.0)
+    ap.add_argument("--hidden-refine", type=int, default=HIDDEN_REFINE)
     args = ap.parse_args()
     want = {}
     for part in args.problems.split(","):
@@ -183,7 +149,7 @@ def main():
         rng = np.random.default_rng(seed)
         problems = [make_problem(rng, kin, ik, cm) for _ in range(max(idx) + 1)]
         for k in idx:
-            diagnose(seed, k, problems[k], kin, gt, cfgs, args.shadow_px)
+            diagnose(seed, k, problems[k], kin, gt, cfgs, args.hidden_refine)
 
 
 if __name__ == "__main__":

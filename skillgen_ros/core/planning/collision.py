@@ -115,7 +115,10 @@ def heightmap_fill(P: np.ndarray, floor: float, voxel: float, z_step: float | No
     (included: an object's bottom edge stands on it) up to the highest point of each cell."""
     z_step = voxel if z_step is None else z_step
     ij = np.floor(P[:, :2] / voxel).astype(np.int64)
-    cells, inv = np.unique(ij, axis=0, return_inverse=True)
+    lo = ij.min(axis=0)
+    span = int(ij[:, 1].max() - lo[1]) + 1
+    keys, inv = np.unique((ij[:, 0] - lo[0]) * span + (ij[:, 1] - lo[1]), return_inverse=True)  # 1-D: fast
+    cells = np.column_stack([keys // span + lo[0], keys % span + lo[1]])
     top = np.full(len(cells), -np.inf)
     np.maximum.at(top, inv.reshape(-1), P[:, 2])
     n = np.maximum(1, np.ceil((top - floor) / z_step).astype(np.int64)) + 1

@@ -35,6 +35,7 @@ from scipy.ndimage import minimum_filter
 from ..errors import InvalidInputError
 
 JUMP_PX = 4.0  # neighbouring depths further apart than this many pixel footprints: an edge, not one surface
+MAX_REFINE = 3  # hidden cells are halved at most this often (1.25 mm from 1 cm: finer than any pixel here)
 MAX_FOOTPRINT_PX = 6  # a cell whose footprint is wider than this (very near a camera) is not certified
 
 
@@ -155,29 +156,29 @@ def _shadow_samples(view: DepthView, is_robot, floor: float, voxel: float,
     return o + rays[idx] * t[:, None]
 
 
-def _candidates(samples: np.ndarray, floor: float, voxel: float, within=None) -> np.ndarray:
-    """Centres of the cells holding a sample; within=(centres, width): only inside those cells
-    (a whole number of these cells wide)."""
+def _candidates(samples: np.ndarray, floor: float, voxel: float) -> np.ndarray:
+    """Centres of the cells holding a sample."""
     ij = np.floor(samples / voxel).astype(np.int64)
-    if within is not None:
-        P, width = within
-        k = int(round(width / voxel))
-        parent = np.floor(P / width).astype(np.int64)
-        lo, hi = parent.min(axis=0), parent.max(axis=0)
-        inside = np.zeros(hi - lo + 1, bool)
-        inside[tuple((parent - lo).T)] = True
-        pj = np.floor_divide(ij, k) - lo
-        ok = np.all((pj >= 0) & (pj <= hi - lo), axis=1)
-        ok[ok] = inside[tuple(pj[ok].T)]
-        ij = ij[ok]
-        if not len(ij):
-            return np.empty((0, 3))
-    lo = ij.min(axis=0)
-    ij -= lo
-    grid = np.zeros(ij.max(axis=0) + 1, bool)
-    grid[ij[:, 0], ij[:, 1], ij[:, 2]] = True
-    C = (np.argwhere(grid) + lo + 0.5) * voxel
+    lo, span = ij.min(axis=0), np.ptp(ij, axis=0) + 1
+    key = np.unique(_keys(ij - lo, span))  # 1-D keys: a dense grid of 2.5 mm cells would be ~10^8
+    cells = np.column_stack([key // (span[1] * span[2]), key // span[2] % span[1], key % span[2]])
+    C = (cells + lo + 0.5) * voxel
     return C[C[:, 2] > floor - 0.5 * voxel]
+
+
+def _inside(samples: np.ndarray, C: np.ndarray, voxel: float) -> np.ndarray:
+    """(N,) True where a sample lies in one of the cells centred at C."""
+    cells = np.floor(C / voxel).astype(np.int64)
+    lo, span = cells.min(axis=0), np.ptp(cells, axis=0) + 1
+    ij = np.floor(samples / voxel).astype(np.int64) - lo
+    ok = np.all((ij >= 0) & (ij < span), axis=1)
+    ok[ok] = np.isin(_keys(ij[ok], span), _keys(cells - lo, span))
+    return ok
+
+
+def _keys(ij: np.ndarray, span: np.ndarray) -> np.ndarray:
+    """One int64 per cell index (N,3) in [0, span)."""
+    return (ij[:, 0] * span[1] + ij[:, 1]) * span[2] + ij[:, 2]
 
 
 def _certified_free(view: DepthView, C: np.ndarray, voxel: float, edge_px: int,
@@ -218,6 +219,8 @@ def hidden_space(views: Sequence[DepthView], floor: float,
     no shadow: the space behind the arm is the arm's own motion space). shadow_px: how deep the
     shadow behind a surface is, in pixel footprints at its range (+ a cell); None = down to the
     table (every hidden cell; at most max_shadow metres)."""
+    if not (isinstance(refine, (int, np.integer)) and 0 <= refine <= MAX_REFINE):
+        raise InvalidInputError(f"hidden space: refine must be an integer in [0, {MAX_REFINE}], got {refine!r}")
     samples = [_shadow_samples(v, is_robot, floor, voxel, max_shadow, shadow_px) for v in views]
     samples = np.vstack(samples + [np.empty((0, 3))])
     if not len(samples):
@@ -225,8 +228,11 @@ def hidden_space(views: Sequence[DepthView], floor: float,
     C = _candidates(samples, floor, voxel)
     for level in range(refine + 1):
         if level:  # the half-size cells, inside a cell left, that hold a sample
-            C = _candidates(samples, floor, voxel / 2, within=(C, voxel))
+            samples = samples[_inside(samples, C, voxel)] if len(C) else samples[:0]
+            if not len(samples):
+                return np.empty((0, 3))
             voxel /= 2
+            C = _candidates(samples, floor, voxel)
         keep = np.ones(len(C), bool)
         for v in views:
             keep[keep] = ~_certified_free(v, C[keep], voxel, edge_px, slope_px)

@@ -191,12 +191,14 @@ class CollisionModel:
         `self_filter_q` padded by `filter_pad` -- that is the robot seeing itself.
         fill_below: treat the space under every observed point, down to the table, as occupied
         (the 2.5-D heightmap assumption of tabletop scenes: a camera sees the tops and fronts of
-        objects, not their backs). Points are then voxelized at `voxel` metres.
+        objects, not their backs). Points are then put on columns voxel / FILL_XY_DIV wide, a
+        point every `voxel` metres up each.
         views: the depth images the points came from (occlusion.DepthView); the space hidden
-        behind what they saw, unless another view saw it free, is occupied too (cells of `voxel`),
-        `shadow_px` pixel footprints deep (None: all of it, down to the table). With fill_below,
-        the hidden cells are filled below as well: the unseen strip at a box's far edge, between
-        its last seen top pixel and the true edge, then reaches the table.
+        behind what they saw, unless another view saw it free, is occupied too (cells of `voxel`,
+        those left halved `hidden_refine` times), `shadow_px` pixel footprints deep (None: all of
+        it, down to the table). With fill_below, the hidden cells are filled below as well: the
+        unseen strip at a box's far edge, between its last seen top pixel and the true edge, then
+        reaches the table.
         """
         P = np.asarray(points, float).reshape(-1, 3)
         P = P[np.all(np.isfinite(P), axis=1)]

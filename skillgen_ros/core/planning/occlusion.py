@@ -18,6 +18,10 @@ For each depth view (a depth image with the intrinsics K and the pose it was tak
    (a margin tied to the camera's resolution: a surface seen at a grazing angle changes depth
    by more than a pixel's width from one ray to the next). A pixel without a return certifies
    nothing.
+4. refine: a cell left is only partly hidden where it straddles a silhouette or lies just above
+   a surface, so its halves that hold a shadow sample are certified the same way (`refine`
+   times: 1 cm -> 2.5 mm by default). A whole 1 cm cell, represented by its centre plus the
+   cloud margin, kept goals 1-2 cm over a box's far edge out (bench/planning).
 Cells left are the hidden space; their centres join the cloud (the cloud margin, >= half a
 cell's diagonal, covers each cell).
 

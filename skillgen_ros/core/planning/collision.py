@@ -25,13 +25,13 @@ from ..geometry import invert
 from ..robot import HAND_LINK, TABLE_Z
 from . import kernels
 from .kinematics import LINKS, PandaKinematics
-from .occlusion import DepthView, hidden_space
+from .occlusion import REFINE, DepthView, hidden_space
 
 SPHERES_FILE = Path(__file__).with_name("panda_spheres.yaml")
 HAND = LINKS.index(HAND_LINK)
 ATTACHED = len(LINKS)  # group id of attached-object spheres
 FILL_XY_DIV = 2  # heightmap columns are voxel / FILL_XY_DIV wide (points every voxel up them)
-HIDDEN_REFINE = 2  # hidden cells left after certification are split into 8 and certified again
+HIDDEN_REFINE = REFINE  # hidden cells left after certification are halved and certified again this often
 SHADOW_PX = 4.0  # hidden space behind a surface, in pixel footprints (docs/planning.md: measured)
 
 

@@ -39,6 +39,7 @@ from scipy.ndimage import minimum_filter
 from ..errors import InvalidInputError
 
 JUMP_PX = 4.0  # neighbouring depths further apart than this many pixel footprints: an edge, not one surface
+REFINE = 2  # hidden cells left are halved this often by default (1 cm -> 2.5 mm; bench/planning)
 MAX_REFINE = 3  # hidden cells are halved at most this often (1.25 mm from 1 cm: finer than any pixel here)
 MAX_FOOTPRINT_PX = 6  # a cell whose footprint is wider than this (very near a camera) is not certified
 
@@ -213,7 +214,7 @@ def _certified_free(view: DepthView, C: np.ndarray, voxel: float, edge_px: int,
 def hidden_space(views: Sequence[DepthView], floor: float,
                  is_robot: Callable[[np.ndarray], np.ndarray] | None = None, voxel: float = 0.01,
                  edge_px: int = 1, slope_px: float = 2.0, max_shadow: float = 1.0,
-                 shadow_px: float | None = None, refine: int = 1) -> np.ndarray:
+                 shadow_px: float | None = None, refine: int = REFINE) -> np.ndarray:
     """(M,3) centres of the cells behind observed obstacle surfaces that no view saw free.
 
     refine: times the cells left are split into 8 and those halves that hold a shadow sample

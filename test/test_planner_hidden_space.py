@@ -102,8 +102,9 @@ def test_the_node_occupies_what_the_camera_could_not_see_behind_a_box(ros_domain
             t.join()
 
 
-@pytest.mark.parametrize("param", ["cloud_shadow_px:=-1.0", "cloud_shadow_px:=.nan"])
-def test_a_bad_shadow_depth_parameter_exits_with_a_reason(start_node, param):
+@pytest.mark.parametrize("param", ["cloud_shadow_px:=-1.0", "cloud_shadow_px:=.nan",
+                                   "cloud_hidden_refine:=-1", "cloud_hidden_refine:=9"])
+def test_a_bad_shadow_depth_or_refine_parameter_exits_with_a_reason(start_node, param):
     proc = start_node("planner", "--ros-args", "-p", param)
     assert proc.proc.wait(timeout=60) == 2
     assert "INVALID_PARAMETER" in proc.stop()

@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from skillgen_ros.core.errors import InvalidInputError
 from skillgen_ros.core.geometry import Pose
-from skillgen_ros.core.planning.collision import CollisionModel
+from skillgen_ros.core.planning.collision import CollisionModel, heightmap_fill
 from skillgen_ros.core.planning.ik import IKSolver
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.planning.occlusion import DepthView, hidden_space
@@ -112,6 +112,60 @@ def test_a_path_through_the_boxs_unseen_far_side_is_refused(scene, kin, cm):
     assert cm.check_motion(high, q_at([0.50, 0.35, 0.12], down, seed=high))
 
 
+def _outside_volume(H, width):
+    """cm^3 of hidden cells (of `width`) whose centre lies outside the true box."""
+    local = np.abs(H - BOX_CENTRE) - BOX_HALF
+    outside = np.any(local > 0, axis=1)
+    return float(outside.sum() * (width * 100) ** 3)
+
+
+def test_refined_hidden_space_hugs_the_box(scene):
+    """Cells left after certification are split and their halves holding a shadow sample certified
+    again (refine): the hidden space outside the true box shrinks several-fold (bench/planning:
+    whole 1 cm cells just past a box's far edge refused goals over it), and what stays still
+    lies behind the box as the camera sees it."""
+    view, _ = scene
+    coarse = _outside_volume(hidden_space([view], floor=0.0, shadow_px=4.0, refine=0), 0.01)
+    H = hidden_space([view], floor=0.0, shadow_px=4.0, refine=2)
+    fine = _outside_volume(H, 0.0025)
+    assert coarse > 500.0  # cm^3: the 1 cm cells reach past the box
+    assert fine < coarse / 4
+    assert np.all(H[:, 0] < BOX_CENTRE[0] + BOX_HALF[0] + 0.03) and np.all(H[:, 2] > 0.0)
+
+
+def test_a_hand_over_the_boxs_far_edge_goes_as_low_as_the_surfaces_allow(scene, kin, cm):
+    """The gripper, pointing down over the box's far top edge (the edge the camera sees last),
+    may hover as low with the (refined) hidden space as with the surfaces alone; whole 1 cm
+    hidden cells (refine=0) kept it at least 5 mm higher (bench/planning: GOAL_IN_COLLISION
+    for goals over a box the ground-truth scene allows)."""
+    view, pts = scene
+    ik = IKSolver(kin, rng=0)
+    down = Rotation.from_euler("x", 180, degrees=True)
+    top, far = BOX_CENTRE[2] + BOX_HALF[2], BOX_CENTRE[0] + BOX_HALF[0]
+    Q = [ik.solve(Pose(np.array([far, 0.0, top + h]), down.as_quat()), seed_q=Q_HOME,
+                  max_iterations=2000, timeout=10.0).solutions[0] for h in np.arange(0.0, 0.045, 0.0025)]
+
+    def lowest_free(**kw):
+        cm.set_point_cloud(pts, self_filter_q=Q_HOME, fill_below=True, **kw)
+        return int(np.argmin(cm.in_collision(np.array(Q))))  # first free height (index)
+
+    surfaces = lowest_free()
+    assert 0 < surfaces < len(Q) - 3  # the box top stops the hand, and it is free above
+    assert lowest_free(views=[view]) <= surfaces + 1  # within 2.5 mm
+    assert lowest_free(views=[view], hidden_refine=0) >= surfaces + 2
+
+
+def test_heightmap_columns_are_narrower_than_a_cell():
+    """fill_below puts columns half a cell wide (points every cell up them): an observed point
+    moves at most a quarter cell sideways per axis, and its column reaches it and the table."""
+    P = np.array([[0.4012, 0.0987, 0.1234], [0.4049, 0.0951, 0.05]])
+    F = heightmap_fill(P, 0.0, 0.005, z_step=0.01)
+    for p in P:
+        col = F[np.all(np.abs(F[:, :2] - p[:2]) <= 0.0025 + 1e-12, axis=1)]
+        assert len(col) and col[:, 2].min() == 0.0 and col[:, 2].max() >= p[2] - 1e-12
+        assert np.all(np.diff(np.sort(col[:, 2])) <= 0.01 + 1e-12)
+
+
 def test_depth_view_from_an_organized_cloud_matches_the_depth_image(scene):
     view, _ = scene
     again = DepthView.from_organized(view.points(), view.K, view.T_world_camera)
@@ -130,6 +184,14 @@ def test_bad_depth_views_are_refused_with_a_reason(bad):
     args = dict(depth=np.ones((4, 4)), K=np.diag([100.0, 100.0, 1.0]), T_world_camera=np.eye(4)) | bad
     with pytest.raises(InvalidInputError) as e:
         DepthView(**args)
+    assert e.value.reason == "INVALID_INPUT"
+
+
+@pytest.mark.parametrize("refine", [-1, 4, 1.5, None])
+def test_a_bad_refine_is_refused_with_a_reason(scene, refine):
+    view, _ = scene
+    with pytest.raises(InvalidInputError) as e:
+        hidden_space([view], floor=0.0, refine=refine)
     assert e.value.reason == "INVALID_INPUT"
 
 

@@ -25,11 +25,13 @@ from ..geometry import invert
 from ..robot import HAND_LINK, TABLE_Z
 from . import kernels
 from .kinematics import LINKS, PandaKinematics
-from .occlusion import DepthView, hidden_space
+from .occlusion import REFINE, DepthView, hidden_space
 
 SPHERES_FILE = Path(__file__).with_name("panda_spheres.yaml")
 HAND = LINKS.index(HAND_LINK)
 ATTACHED = len(LINKS)  # group id of attached-object spheres
+FILL_XY_DIV = 2  # heightmap columns are voxel / FILL_XY_DIV wide (points every voxel up them)
+HIDDEN_REFINE = REFINE  # hidden cells left after certification are halved and certified again this often
 SHADOW_PX = 4.0  # hidden space behind a surface, in pixel footprints (docs/planning.md: measured)
 
 
@@ -108,17 +110,21 @@ class _Spheres:
     group: np.ndarray  # LINKS index, or ATTACHED
 
 
-def heightmap_fill(P: np.ndarray, floor: float, voxel: float) -> np.ndarray:
-    """Voxel columns from `floor` (included: an object's bottom edge stands on it) up to the
-    highest point of each (x, y) cell."""
+def heightmap_fill(P: np.ndarray, floor: float, voxel: float, z_step: float | None = None) -> np.ndarray:
+    """Columns on a `voxel` (x, y) grid, points every `z_step` (default voxel) from `floor`
+    (included: an object's bottom edge stands on it) up to the highest point of each cell."""
+    z_step = voxel if z_step is None else z_step
     ij = np.floor(P[:, :2] / voxel).astype(np.int64)
-    cells, inv = np.unique(ij, axis=0, return_inverse=True)
+    lo = ij.min(axis=0)
+    span = int(ij[:, 1].max() - lo[1]) + 1
+    keys, inv = np.unique((ij[:, 0] - lo[0]) * span + (ij[:, 1] - lo[1]), return_inverse=True)  # 1-D: fast
+    cells = np.column_stack([keys // span + lo[0], keys % span + lo[1]])
     top = np.full(len(cells), -np.inf)
     np.maximum.at(top, inv.reshape(-1), P[:, 2])
-    n = np.maximum(1, np.ceil((top - floor) / voxel).astype(np.int64)) + 1
+    n = np.maximum(1, np.ceil((top - floor) / z_step).astype(np.int64)) + 1
     rep = np.repeat(np.arange(len(cells)), n)
     k = np.arange(len(rep)) - np.repeat(np.cumsum(n) - n, n)
-    z = np.minimum(floor + k * voxel, top[rep])  # from the table itself up to the top
+    z = np.minimum(floor + k * z_step, top[rep])  # from the table itself up to the top
     xy = (cells[rep] + 0.5) * voxel
     return np.column_stack([xy, z])
 
@@ -177,7 +183,7 @@ class CollisionModel:
     def set_point_cloud(self, points, self_filter_q=None, attached: AttachedObject | None = None,
                         filter_pad: float = 0.02, fill_below: bool = False,
                         voxel: float = 0.01, views: Sequence[DepthView] = (),
-                        shadow_px: float | None = SHADOW_PX) -> int:
+                        shadow_px: float | None = SHADOW_PX, hidden_refine: int = HIDDEN_REFINE) -> int:
         """Use `points` (N,3, world) as obstacles; returns how many are kept.
 
         Dropped: non-finite points, the table top (z <= table_z + 5 mm; the table is the
@@ -185,12 +191,14 @@ class CollisionModel:
         `self_filter_q` padded by `filter_pad` -- that is the robot seeing itself.
         fill_below: treat the space under every observed point, down to the table, as occupied
         (the 2.5-D heightmap assumption of tabletop scenes: a camera sees the tops and fronts of
-        objects, not their backs). Points are then voxelized at `voxel` metres.
+        objects, not their backs). Points are then put on columns voxel / FILL_XY_DIV wide, a
+        point every `voxel` metres up each.
         views: the depth images the points came from (occlusion.DepthView); the space hidden
-        behind what they saw, unless another view saw it free, is occupied too (cells of `voxel`),
-        `shadow_px` pixel footprints deep (None: all of it, down to the table). With fill_below,
-        the hidden cells are filled below as well: the unseen strip at a box's far edge, between
-        its last seen top pixel and the true edge, then reaches the table.
+        behind what they saw, unless another view saw it free, is occupied too (cells of `voxel`,
+        those left halved `hidden_refine` times), `shadow_px` pixel footprints deep (None: all of
+        it, down to the table). With fill_below, the hidden cells are filled below as well: the
+        unseen strip at a box's far edge, between its last seen top pixel and the true edge, then
+        reaches the table.
         """
         P = np.asarray(points, float).reshape(-1, 3)
         P = P[np.all(np.isfinite(P), axis=1)]
@@ -211,12 +219,14 @@ class CollisionModel:
         if len(views) and self.table_z is not None:
             if self.cloud_margin < 0.5 * np.sqrt(3.0) * voxel:
                 raise InvalidInputError(f"cloud margin {self.cloud_margin} m does not cover a {voxel} m cell")
-            H = hidden_space(views, self.table_z, on_robot, voxel, shadow_px=shadow_px)
+            H = hidden_space(views, self.table_z, on_robot, voxel, shadow_px=shadow_px, refine=hidden_refine)
             if on_robot is not None and len(H):
                 H = H[~on_robot(H)]  # where the robot is, is its own space
             P = np.vstack([P, H])
         if fill_below and len(P) and self.table_z is not None:
-            P = heightmap_fill(P, self.table_z, voxel)
+            # columns half a cell wide: a point moves at most 3.5 mm sideways (a 1 cm grid moved a
+            # box's edge 7 mm out and refused goals the raw cloud allowed; bench/planning)
+            P = heightmap_fill(P, self.table_z, voxel / FILL_XY_DIV, z_step=voxel)
         self.cloud = P
         self._trees = {}
         return len(P)

@@ -18,6 +18,10 @@ For each depth view (a depth image with the intrinsics K and the pose it was tak
    (a margin tied to the camera's resolution: a surface seen at a grazing angle changes depth
    by more than a pixel's width from one ray to the next). A pixel without a return certifies
    nothing.
+4. refine: a cell left is only partly hidden where it straddles a silhouette or lies just above
+   a surface, so its halves that hold a shadow sample are certified the same way (`refine`
+   times: 1 cm -> 2.5 mm by default). A whole 1 cm cell, represented by its centre plus the
+   cloud margin, kept goals 1-2 cm over a box's far edge out (bench/planning).
 Cells left are the hidden space; their centres join the cloud (the cloud margin, >= half a
 cell's diagonal, covers each cell).
 
@@ -35,6 +39,8 @@ from scipy.ndimage import minimum_filter
 from ..errors import InvalidInputError
 
 JUMP_PX = 4.0  # neighbouring depths further apart than this many pixel footprints: an edge, not one surface
+REFINE = 2  # hidden cells left are halved this often by default (1 cm -> 2.5 mm; bench/planning)
+MAX_REFINE = 3  # hidden cells are halved at most this often (1.25 mm from 1 cm: finer than any pixel here)
 MAX_FOOTPRINT_PX = 6  # a cell whose footprint is wider than this (very near a camera) is not certified
 
 
@@ -158,12 +164,26 @@ def _shadow_samples(view: DepthView, is_robot, floor: float, voxel: float,
 def _candidates(samples: np.ndarray, floor: float, voxel: float) -> np.ndarray:
     """Centres of the cells holding a sample."""
     ij = np.floor(samples / voxel).astype(np.int64)
-    lo = ij.min(axis=0)
-    ij -= lo
-    grid = np.zeros(ij.max(axis=0) + 1, bool)
-    grid[ij[:, 0], ij[:, 1], ij[:, 2]] = True
-    C = (np.argwhere(grid) + lo + 0.5) * voxel
+    lo, span = ij.min(axis=0), np.ptp(ij, axis=0) + 1
+    key = np.unique(_keys(ij - lo, span))  # 1-D keys: a dense grid of 2.5 mm cells would be ~10^8
+    cells = np.column_stack([key // (span[1] * span[2]), key // span[2] % span[1], key % span[2]])
+    C = (cells + lo + 0.5) * voxel
     return C[C[:, 2] > floor - 0.5 * voxel]
+
+
+def _inside(samples: np.ndarray, C: np.ndarray, voxel: float) -> np.ndarray:
+    """(N,) True where a sample lies in one of the cells centred at C."""
+    cells = np.floor(C / voxel).astype(np.int64)
+    lo, span = cells.min(axis=0), np.ptp(cells, axis=0) + 1
+    ij = np.floor(samples / voxel).astype(np.int64) - lo
+    ok = np.all((ij >= 0) & (ij < span), axis=1)
+    ok[ok] = np.isin(_keys(ij[ok], span), _keys(cells - lo, span))
+    return ok
+
+
+def _keys(ij: np.ndarray, span: np.ndarray) -> np.ndarray:
+    """One int64 per cell index (N,3) in [0, span)."""
+    return (ij[:, 0] * span[1] + ij[:, 1]) * span[2] + ij[:, 2]
 
 
 def _certified_free(view: DepthView, C: np.ndarray, voxel: float, edge_px: int,
@@ -194,19 +214,32 @@ def _certified_free(view: DepthView, C: np.ndarray, voxel: float, edge_px: int,
 def hidden_space(views: Sequence[DepthView], floor: float,
                  is_robot: Callable[[np.ndarray], np.ndarray] | None = None, voxel: float = 0.01,
                  edge_px: int = 1, slope_px: float = 2.0, max_shadow: float = 1.0,
-                 shadow_px: float | None = None) -> np.ndarray:
+                 shadow_px: float | None = None, refine: int = REFINE) -> np.ndarray:
     """(M,3) centres of the cells behind observed obstacle surfaces that no view saw free.
+
+    refine: times the cells left are split into 8 and those halves that hold a shadow sample
+    certified again; the cells returned are voxel / 2**refine wide.
 
     floor: the table plane (z); is_robot: (N,3) -> bool for points on the robot itself (they cast
     no shadow: the space behind the arm is the arm's own motion space). shadow_px: how deep the
     shadow behind a surface is, in pixel footprints at its range (+ a cell); None = down to the
     table (every hidden cell; at most max_shadow metres)."""
+    if not (isinstance(refine, (int, np.integer)) and 0 <= refine <= MAX_REFINE):
+        raise InvalidInputError(f"hidden space: refine must be an integer in [0, {MAX_REFINE}], got {refine!r}")
     samples = [_shadow_samples(v, is_robot, floor, voxel, max_shadow, shadow_px) for v in views]
     samples = np.vstack(samples + [np.empty((0, 3))])
     if not len(samples):
         return np.empty((0, 3))
     C = _candidates(samples, floor, voxel)
-    keep = np.ones(len(C), bool)
-    for v in views:
-        keep[keep] = ~_certified_free(v, C[keep], voxel, edge_px, slope_px)
-    return C[keep]
+    for level in range(refine + 1):
+        if level:  # the half-size cells, inside a cell left, that hold a sample
+            samples = samples[_inside(samples, C, voxel)] if len(C) else samples[:0]
+            if not len(samples):
+                return np.empty((0, 3))
+            voxel /= 2
+            C = _candidates(samples, floor, voxel)
+        keep = np.ones(len(C), bool)
+        for v in views:
+            keep[keep] = ~_certified_free(v, C[keep], voxel, edge_px, slope_px)
+        C = C[keep]
+    return C

@@ -221,11 +221,11 @@ def render() -> str:
     cells = cell_rows()
     if cells:
         lines += [""] + cells
-    from bench.hsp.table import hsp_rows
+    from bench.hsp.table import budget_rows, hsp_rows
 
     hsp = hsp_rows(load("hsp"))
     if hsp:
-        lines += [""] + hsp
+        lines += [""] + hsp + budget_rows(load("hsp"), load("hsp_budget3x"))
     lines += ["", END]
     return "\n".join(lines)
 

@@ -62,3 +62,29 @@ def hsp_rows(data: dict) -> list[str]:
     out.append("- Cells not listed have not run yet; the paper's 18-variant averages (HSP-TAMP 85.7, HSP-Class 82.9, "
                "HSP-Reg 72.6, MimicGen 59.1) compare with no subset of them.")
     return out
+
+
+def budget_rows(base: dict, longer: dict) -> list[str]:
+    """The budget's cost on one cell (issue 23): the same networks trained on past the budget
+    (bench/results/hsp_budget3x.json, which starts as a copy of hsp.json), best success per method
+    at the budget and at the latest evaluation so far."""
+    out = []
+    for name, c in longer.get("cells", {}).items():
+        b = base.get("cells", {}).get(name, {})
+        nets = c.get("networks", {})
+        parts = []
+        for m in METHODS:
+            evals = c.get("methods", {}).get(m, {}).get("evals", [])
+            at = b.get("methods", {}).get(m, {}).get("best")
+            if not evals or not at:
+                continue
+            best = max(evals, key=lambda e: e["successes"])
+            parts.append(f"{m} {at['successes']}/{at['rollouts']} -> {best['successes']}/{best['rollouts']} "
+                         f"(step {best['step']})")
+        if parts:
+            mins = {k: f"{v['train_seconds'] / 60:.0f} min, {v['steps']} steps" for k, v in nets.items()}
+            out.append(f"- Longer training, {name} (bench/results/hsp_budget3x.json, goal "
+                       f"{longer.get('protocol', {}).get('budget_minutes', '?')} min per network; so far "
+                       f"{'; '.join(f'{k}: {v}' for k, v in mins.items())}): best at the budget -> best so far: "
+                       + ", ".join(parts) + ".")
+    return out

@@ -95,7 +95,8 @@ def test_graph_and_in_process_rollouts_agree(graph, checkpoint, mode):
     finally:
         env.close()
     graph_ee = np.asarray(res.ee_poses).reshape(-1, 7)
-    assert (res.reason, res.steps) == (mine.reason.value, mine.steps), (res.message, mine.message)
+    assert (res.reason, res.steps) == (mine.reason.value, mine.steps), \
+        (res.message, mine.message, procs["sim_driver"].output()[-3000:], procs["hsp"].output()[-3000:])
     assert graph_ee.shape == mine.ee_trajectory.shape
     assert [(s.skill_index, s.source_demo, s.motion_steps, s.policy_steps, s.ended) for s in mine.skills] == \
         [(s["skill_index"], s["source_demo"], s["motion_steps"], s["policy_steps"], s["ended"])

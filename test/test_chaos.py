@@ -23,10 +23,6 @@ from skillgen_ros.core.generation.outcome import FailureReason
 from skillgen_ros.testing import chaos
 
 SKILLGEN = [sys.executable, "-m", "skillgen_ros.cli.main"]
-# Shorter per-call budgets than params/datagen.yaml's (a dead planner costs timeout_plan + timeout_execute),
-# still far above what a call takes on a loaded machine.
-FAST_TIMEOUTS = ["-p", "datagen:timeout_execute:=30.0", "-p", "datagen:timeout_skill:=60.0",
-                 "-p", "datagen:timeout_reset:=20.0"]
 SEED = 0
 REASONS = {r.value for r in FailureReason}
 
@@ -40,7 +36,7 @@ def graph(tmp_path_factory):
     env = node_env(lease.id)
     log = open(root / "launch.log", "wb")  # the launcher's and every node's output, for a failure's post-mortem
     p = subprocess.Popen(SKILLGEN + ["launch", "datagen", "--respawn", "--ros-args", "-p",
-                                     f"datagen:writable_roots:=['{root}']", *FAST_TIMEOUTS],
+                                     f"datagen:writable_roots:=['{root}']", *chaos.FAST_TIMEOUTS],
                          env=env, stdout=subprocess.DEVNULL, stderr=log, cwd=REPO, start_new_session=True)
     try:
         yield p, lease.id, root
@@ -62,25 +58,11 @@ def _client(dom: int) -> SkillGenClient:
     return c
 
 
-def _stop_recording(dom: int) -> bool:
-    from conftest import client_node
-    from skillgen_interfaces.srv import Recorder
-    from skillgen_ros.answered import first_answer
-
-    with client_node(dom, "chaos_recorder_stop") as (node, ex):
-        cli = node.create_client(Recorder, "recorder/stop")
-        if not cli.wait_for_service(timeout_sec=60):
-            return False
-        r = first_answer(lambda: cli.call_async(Recorder.Request()),
-                         lambda f, s: ex.spin_until_future_complete(f, timeout_sec=s), timeout=60, each=20)
-        return r is not None and r.success
-
-
 @pytest.mark.parametrize("victim", chaos.VICTIMS)
 def test_a_node_killed_mid_run_loses_nothing_and_the_run_goes_on(graph, victim):
     launcher, dom, root = graph
     rec = chaos.kill_mid_run(launcher.pid, lambda: _client(dom), victim, root / victim, seed=SEED,
-                             stop_recording=lambda: _stop_recording(dom))
+                             stop_recording=lambda: chaos.stop_recording(dom))
     assert rec.survived, rec
     assert set(rec.reasons.values()) <= REASONS and rec.reasons, rec  # every attempt with a reason code
     assert rec.bag_messages > 0 and rec.bag_recovered == (victim == "recorder"), rec

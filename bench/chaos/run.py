@@ -26,33 +26,6 @@ sys.path.insert(0, str(REPO))
 from bench.machine import machine_info  # noqa: E402
 from skillgen_ros import rosenv  # noqa: E402,F401  (loopback discovery before rclpy)
 
-FAST_TIMEOUTS = ["-p", "datagen:timeout_execute:=30.0", "-p", "datagen:timeout_skill:=60.0",
-                 "-p", "datagen:timeout_reset:=20.0"]  # as test/test_chaos.py: a dead planner costs plan + execute
-
-
-def _stop_recording(dom: int) -> bool:
-    import rclpy
-
-    from skillgen_interfaces.srv import Recorder
-    from skillgen_ros.answered import first_answer
-
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=dom)
-    try:
-        node = rclpy.create_node("chaos_recorder_stop", context=ctx)
-        from rclpy.executors import SingleThreadedExecutor
-
-        ex = SingleThreadedExecutor(context=ctx)
-        ex.add_node(node)
-        cli = node.create_client(Recorder, "recorder/stop")
-        if not cli.wait_for_service(timeout_sec=60):
-            return False
-        r = first_answer(lambda: cli.call_async(Recorder.Request()),
-                         lambda f, s: ex.spin_until_future_complete(f, timeout_sec=s), timeout=60, each=20)
-        return r is not None and r.success
-    finally:
-        rclpy.shutdown(context=ctx)
-
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -76,7 +49,7 @@ def main() -> int:
     run_dir = Path(a.output or tempfile.mkdtemp(prefix="skillgen_chaos_"))
     lease = acquire_domain()
     os.environ["ROS_DOMAIN_ID"] = str(lease.id)
-    roots = ["--ros-args", "-p", f"datagen:writable_roots:=['{run_dir}']", *FAST_TIMEOUTS]
+    roots = ["--ros-args", "-p", f"datagen:writable_roots:=['{run_dir}']", *chaos.FAST_TIMEOUTS]
     t0 = time.monotonic()
 
     def client():
@@ -89,7 +62,8 @@ def main() -> int:
                       ros_args=roots, respawn=True) as (g, _probe):
         for r, v in todo:
             out = run_dir / f"{v}_{r}"
-            rec = chaos.kill_mid_run(g.pid, client, v, out, seed=r, stop_recording=lambda: _stop_recording(lease.id))
+            rec = chaos.kill_mid_run(g.pid, client, v, out, seed=r,
+                                     stop_recording=lambda: chaos.stop_recording(lease.id))
             kills.append({"victim": v, "round": r, "survived": rec.survived,
                           **{k: val for k, val in dataclasses.asdict(rec).items() if k != "reasons"},
                           "attempt_reasons": {str(i): why for i, why in rec.reasons.items()}})

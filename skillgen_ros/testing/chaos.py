@@ -20,6 +20,11 @@ from typing import Callable
 
 import h5py
 
+# Shorter per-call budgets than params/datagen.yaml's (a dead planner costs timeout_plan + timeout_execute),
+# still far above what a call takes on a loaded machine: `--ros-args` for the datagen graph.
+FAST_TIMEOUTS = ["-p", "datagen:timeout_execute:=30.0", "-p", "datagen:timeout_skill:=60.0",
+                 "-p", "datagen:timeout_reset:=20.0"]
+
 # The processes of graphs.yaml's datagen graph, by executable (the container runs sim_driver and
 # skill_replay), and the reasons an attempt that needed the killed one fails with: graph_env turns
 # a call nobody answers into its stage's reason; the recorder and datagen are in no attempt's path.
@@ -209,3 +214,20 @@ def kill_mid_run(launcher_pid: int, make_client: Callable, victim: str, out: Pat
     except Exception as e:  # noqa: BLE001 -- any reader error is a lost bag
         rec.problems.append(f"bag: {type(e).__name__}: {e}")
     return rec
+
+
+def stop_recording(domain: int) -> bool:
+    """Ask the graph's recorder on `domain` to stop (kill_mid_run's stop_recording: after a killed
+    datagen, its orphaned recording is ended this way); True if it said so."""
+    from skillgen_interfaces.srv import Recorder
+
+    from ..answered import first_answer
+    from ..nodes.latest import wait_future
+    from .handles import spinning_node
+
+    with spinning_node(domain, "chaos_recorder_stop") as node:
+        cli = node.create_client(Recorder, "recorder/stop")
+        if not cli.wait_for_service(timeout_sec=60):
+            return False
+        r = first_answer(lambda: cli.call_async(Recorder.Request()), wait_future, timeout=60, each=20)
+        return r is not None and r.success

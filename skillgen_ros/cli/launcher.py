@@ -125,6 +125,8 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
                         print(f"[launch] node '{name}' exited with code {rc}; respawning it "
                               f"({restarts[name]}/{RESPAWN_MAX})", file=sys.stderr, flush=True)
                         procs[i] = (name, start(name, cmds[name]))
+                        if stopping["flag"]:  # Ctrl-C came while it started: _forward saw the dead one
+                            procs[i][1].send_signal(signal.SIGINT)
                         continue
                     failed = (name, rc)
                     break

@@ -158,9 +158,10 @@ def _check_session_bag(bag: Path) -> None:
     assert {m.data for m in got["/run/stage"]} >= {"motion", "skill"}
 
 
-def _one_recorded_attempt(graph, out: Path, task: str, objects: tuple[str, ...]) -> None:
+def _one_recorded_attempt(graph, out: Path, task: str, objects: tuple[str, ...]) -> dict:
     """One paper-profile attempt of `task` through the graph (estimated poses, success not required) is
-    recorded (demo.hdf5 or failed.hdf5) with each object's pose and the HSP labels of the task's skills."""
+    recorded (demo.hdf5 or failed.hdf5) with each object's pose and the HSP labels of the task's skills;
+    returns its arrays (_attempt_arrays)."""
     from skillgen_ros.core.tasks import get_task
 
     _, procs, client = graph
@@ -174,6 +175,7 @@ def _one_recorded_attempt(graph, out: Path, task: str, objects: tuple[str, ...])
             assert key in demo, key
         assert set(np.unique(demo["labels/skill_index"][:])) - {-1} <= set(range(len(get_task(task).skills)))
     assert all(p.proc.poll() is None for p in procs.values())
+    return _attempt_arrays(out)
 
 
 def test_a_three_piece_assembly_attempt_runs_through_the_graph(graph, tmp_path):
@@ -183,8 +185,37 @@ def test_a_three_piece_assembly_attempt_runs_through_the_graph(graph, tmp_path):
 
 def test_a_coffee_attempt_runs_through_the_graph(graph, tmp_path):
     """The articulated task: the planner takes the machine's lid as an obstacle at the driver's
-    object_joint_states value. (Graph datasets do not record the lid angle yet: StateHistory has no joints.)"""
-    _one_recorded_attempt(graph, tmp_path / "coffee", "Coffee", ("coffee_machine", "coffee_pod"))
+    object_joint_states value, and the dataset records the lid angle at every step (obs/coffee_machine_joints,
+    from the driver's state_history) as the in-process env does: same key and layout, and the same values
+    for the same (seed, index) until the fingers close on the pod (after contact the sims drift apart,
+    test_graph_records_the_true_object_poses_the_in_process_env_records)."""
+    from skillgen_ros.core.generation.attempt import run_attempt
+    from skillgen_ros.core.generation.session import RunRequest
+    from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
+    from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
+    from skillgen_ros.core.tasks import coffee as C, get_task
+
+    g = _one_recorded_attempt(graph, tmp_path / "coffee", "Coffee", ("coffee_machine", "coffee_pod"))
+    lid = g["obs/coffee_machine_joints"]
+    assert lid.shape == (len(g["actions"]), 1) and np.isfinite(lid).all()
+    assert lid[0, 0] == pytest.approx(C.LID_OPEN, abs=1e-3)  # open after the reset (coffee.py _reset_internal)
+    if g["success"]:  # success needs the lid shut: the record saw it close
+        assert lid[:, 0].min() < C.LID_CLOSED_TOLERANCE, lid[-5:, 0]
+
+    task = get_task("Coffee")
+    env = SimGenerationEnv(SimEnvConfig(perception="estimate", video=False))
+    try:
+        ep = run_attempt(env, load_source_demos(expand_bag_paths([str(REPO / "bags" / "Coffee")]), task), task,
+                         "skillgen", 0, 0, RunRequest(task="Coffee", variant="D0", profile="paper").config()).episode
+    finally:
+        env.close()
+    assert {f"obs/{k}" for k in ep.obs} == {k for k in g if k.startswith("obs/")}  # the same keys, lid included
+    assert ep.obs["coffee_machine_joints"].shape[1:] == lid.shape[1:]
+    closing = np.flatnonzero(ep.actions_abs[:, 7] > 0)  # the first closing command, if the attempt got there
+    n = min(int(closing[0]) if len(closing) else len(ep.actions), len(lid))
+    assert n > 30, (closing[:1], len(lid), len(ep.actions))
+    for k, v in ep.obs.items():  # measured (seed 0, n = 54): the lid bit for bit, the arm within 1e-8
+        np.testing.assert_allclose(g[f"obs/{k}"][:n], v[:n], atol=1e-6, err_msg=k)
 
 
 def test_skill_replay_loads_demos_ahead_and_says_why_not(graph, tmp_path):

@@ -316,6 +316,7 @@ def test_state_history_answers_each_published_period(start_node, client):
     assert list(r.kinds) == [StateHistory.Response.RESET] + [StateHistory.Response.OSC_TARGET] * 3
     np.testing.assert_array_equal(np.reshape(r.joint_positions, (4, 7)), [m.position[:7] for m in seen[-4:]])
     assert set(r.object_ids) == {"square_nut", "square_peg"} and len(r.object_poses) == 4 * 2 * 7
+    assert not r.joint_names and not r.object_joints  # no articulated object (Coffee: test_driver_joint_states)
     one = client.call(hist, StateHistory.Request(after=before, until=seen[-3].header.stamp))
     assert len(one.stamps) == 2  # (after, until]
     n1 = len(seen)

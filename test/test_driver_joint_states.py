@@ -1,6 +1,7 @@
 """The driver's object_joint_states topic (nodes/driver_joints.py) through a running sim_driver: Coffee's
-lid angle after a reset, then while a hand streamed as osc_target pushes the lid shut; a scene without
-articulated objects publishes no names."""
+lid angle after a reset, then while a hand streamed as osc_target pushes the lid shut, and the same values
+period by period in its state_history (what graph datasets record); a scene without articulated objects
+publishes no names."""
 from __future__ import annotations
 
 import numpy as np
@@ -10,10 +11,11 @@ from scipy.spatial.transform import Rotation
 from skillgen_ros import rosenv  # noqa: F401
 
 from sensor_msgs.msg import JointState
-from skillgen_interfaces.srv import TaskSuccess
+from skillgen_interfaces.srv import StateHistory, TaskSuccess
 from skillgen_ros.core.tasks import coffee as C
 from skillgen_ros.nodes.convert import pose_from_msg
 from skillgen_ros.nodes.driver_joints import QOS, TOPIC
+from skillgen_ros.nodes.state_history import ns, to_time
 from test_driver_interface import Client, client  # noqa: F401  (fixture)
 
 LID = "coffee_machine/lid"
@@ -43,15 +45,23 @@ def test_lid_angle_on_the_topic_follows_the_pushed_lid(start_node, client):  # n
     path += [at([0.0, -0.03, 0.24 - 0.08 * k / 20]) for k in range(1, 21)]
     path += [at([0.0, -0.03 + 0.14 * k / 40, 0.16]) for k in range(41)]
     path += [at([0.0, 0.11, 0.16 + 0.1 * k / 20]) for k in range(1, 21)] + [at([0.0, 0.11, 0.26])] * 20
-    seen = []
+    seen, stamps = [], []
     for xyz in path:   # lockstep: one period per target; wait for that period's joint values
         stamp = c.last["joints"].header.stamp
         c.target(xyz, quat, gripper=1.0)
         assert c.spin_until(lambda: c.last["joints"].header.stamp != stamp, 10.0)
         seen.append(_lid(c))
+        stamps.append(ns(c.last["joints"].header.stamp))
     assert seen[0] == pytest.approx(2 * np.pi / 3, abs=1e-6)
     assert seen[-1] < C.LID_CLOSED_TOLERANCE           # pushed over upright, it fell shut
     assert not c.call(c.success_cli, TaskSuccess.Request()).success   # the pod is still on the table
+    history = c.node.create_client(StateHistory, "state_history")
+    hist = c.call(history, StateHistory.Request(after=to_time(stamps[0] - 1)))
+    assert hist.success and list(hist.joint_names) == [LID], hist.message
+    by_stamp = dict(zip(map(ns, hist.stamps), hist.object_joints))
+    assert len(hist.object_joints) == len(hist.stamps) and [by_stamp[t] for t in stamps] == seen  # bit for bit
     # a scene without articulated objects: the latched message names nothing
     assert c.reset("Square", "D0", 0).success
     assert c.spin_until(lambda: len(c.last["joints"].name) == 0)
+    square = c.call(history, StateHistory.Request(after=to_time(ns(c.last["joints"].header.stamp) - 1)))
+    assert square.success and len(square.stamps) >= 1 and not square.joint_names and not square.object_joints

@@ -210,3 +210,34 @@ def test_articulated_joint_values_are_recorded_per_object(tmp_path):
     plain = EpisodeRecorder("ground_truth")
     _record(plain, [_obs(0, 0.5, 0.51, 10)])
     assert not any(k.endswith("_joints") for k in plain.episode(True).obs)
+
+
+def test_joint_values_are_resolved_by_stamp_as_the_true_poses_are():
+    """The graph's observed steps carry only a stamp: their lid angle comes from one joints lookup (the
+    driver's history), in either observation source; a step the lookup does not know stays NaN, and
+    without a joints lookup (a robot with no history) nothing is asked and no key is written."""
+    from dataclasses import replace
+
+    lid = "coffee_machine/lid"
+    for source in ("ground_truth", "estimate"):
+        rec = EpisodeRecorder(source)
+        _record(rec, [replace(_obs(0, 0.5, 0.51, 10), object_joints={lid: 2.09}), _obs(1, 0.5, None, 20),
+                      _obs(2, 0.5, None, 30), _obs(3, 0.5, None, 40)])
+        assert rec.unresolved_joint_stamps() == [20, 30, 40]
+        asked = []
+
+        def joints(stamps):
+            asked.append(list(stamps))
+            return {t: {lid: t / 100} for t in stamps if t != 30}
+
+        rec.resolve_from(lambda stamps: {t: {"cube": _pose(t / 100), "plate": _pose(9.0)} for t in stamps}, joints)
+        assert asked == [[20, 30, 40]] and rec.unresolved_joint_stamps() == [30]
+        np.testing.assert_allclose(rec.episode(True).obs["coffee_machine_joints"], [[2.09], [0.2], [np.nan], [0.4]])
+    blind = EpisodeRecorder("estimate")
+    _record(blind, [_obs(0, 0.5, None, 10)])
+    blind.resolve_from(None, None)
+    assert blind.unresolved_joint_stamps() == [10] and not any(k.endswith("_joints") for k in blind.episode(True).obs)
+    none = EpisodeRecorder("estimate")  # a scene without articulated objects: {} per stamp, no key
+    _record(none, [_obs(0, 0.5, None, 10)])
+    none.resolve_from(None, lambda stamps: {t: {} for t in stamps})
+    assert none.unresolved_joint_stamps() == [] and not any(k.endswith("_joints") for k in none.episode(True).obs)

@@ -14,8 +14,9 @@ and rejected osc_target messages are logged and published as "REASON: message" o
 the robot keeps its previous command. Targets more than 0.10 m outside the workspace box are
 rejected (OUT_OF_WORKSPACE), nearer ones clamped onto it (core/sim/commands.py).
 Every published state also goes into a bounded ring (history_periods), answered by the
-`state_history` service: the measured states of an executed trajectory and the world's object
-poses (the sim's ground truth) per period, for a dataset's steps, without a topic reader in the loop.
+`state_history` service: the measured states of an executed trajectory, the world's object poses
+(the sim's ground truth) and articulated objects' joint values (as object_joint_states names them)
+per period, for a dataset's steps, without a topic reader in the loop.
 """
 from __future__ import annotations
 
@@ -113,7 +114,8 @@ class DriverNode(DriverActions, Node):
         self._clock_base = 0.0  # lockstep: sim seconds of earlier scenes, so /clock never goes back
         if int(self.param("history_periods")) < 1:
             raise ParameterError("history_periods must be >= 1")
-        # (stamp ns, arm + finger positions (9,), object ids, object poses (K, 7), kind) per published state
+        # (stamp ns, arm + finger positions (9,), object ids, object poses (K, 7), kind, joint names,
+        # joint values (J,)) per published state
         self._history: deque = deque(maxlen=int(self.param("history_periods")))
 
         cb = ReentrantCallbackGroup()
@@ -250,9 +252,10 @@ class DriverNode(DriverActions, Node):
             return force or any(p.get_subscription_count() for p in pubs)
 
         q = np.concatenate([w.joint_positions(), w.finger_positions()])
-        poses = w.object_poses() if w.scene is not None else {}
+        poses, joints = (w.object_poses(), w.object_joints()) if w.scene is not None else ({}, {})
         self._history.append((stamp.sec * 1_000_000_000 + stamp.nanosec, q, tuple(poses),
-                              np.array([p.as_array() for p in poses.values()]).reshape(-1, 7), kind))
+                              np.array([p.as_array() for p in poses.values()]).reshape(-1, 7), kind,
+                              tuple(joints), np.fromiter(joints.values(), float, len(joints))))
 
         if self.pub_clock is not None and wanted(self.pub_clock):
             self.pub_clock.publish(Clock(clock=stamp))
@@ -342,6 +345,8 @@ class DriverNode(DriverActions, Node):
         res.finger_positions = [float(v) for r in rows for v in r[1][7:9]]
         res.object_ids = list(rows[0][2]) if rows else []
         res.object_poses = np.concatenate([r[3].reshape(-1) for r in rows]).tolist() if rows else []
+        res.joint_names = list(rows[0][5]) if rows else []
+        res.object_joints = np.concatenate([r[6] for r in rows]).tolist() if rows else []
         res.success, res.reason_code, res.message = True, "OK", f"{len(rows)} periods"
         return res
 

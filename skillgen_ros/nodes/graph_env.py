@@ -12,9 +12,10 @@ Observations come from `joint_states` (arm and finger joints; the EE pose is FK 
 pinocchio, within 1e-8 m of the driver's `ee_pose`) and the same period's `ee_wrench`,
 read on demand (nodes/latest.py) so that the driver's hundreds of periods a second in lockstep do
 not wake this node. Observations carry the state's stamp and the robot's belief of the object
-poses (latest estimates, a grasped object moved with the hand); the sim's true poses come from the
-driver's `state_history` (one call per motion, and one per attempt for the rest, by stamp:
-`true_object_poses`), never from a topic reader in the control loop. Motion-planner steps are the
+poses (latest estimates, a grasped object moved with the hand); the sim's true poses and articulated
+objects' joint values come from the driver's `state_history` (one call per motion, and one per attempt
+for the rest, by stamp: `true_object_poses`, `true_object_joints`), never from a topic reader in the
+control loop. Motion-planner steps are the
 measured states of the driver's trajectory periods (state_history); a driver without that service
 (a real robot) gets the planned trajectory sampled at the control rate (commanded states, FK
 through pinocchio). Skill steps are the measured states skill_replay saw.
@@ -84,13 +85,11 @@ class RosGraphEnv(GraphCalls):
         self.osc_pub = node.create_publisher(OscTarget, "osc_target", 10)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.task_pub = node.create_publisher(String, "perception/set_task", latched)
-        self._q = np.zeros(7)
-        self._fingers = np.zeros(2)
+        self._q, self._fingers = np.zeros(7), np.zeros(2)
         self._joints = LatestMessage(node, JointState, "joint_states")
         self._wrench = LatestMessage(node, convert.WrenchStamped, "ee_wrench")
         self.kin = PandaKinematics()
-        self.task = ""
-        self._task_sent = ""
+        self.task, self._task_sent = "", ""
         self.scene_objects = []
         self._cloud_floor = None  # perception must use a cloud stamped at or after this
         self._moved = False  # the robot moved since _cloud_floor's frames were taken
@@ -141,8 +140,7 @@ class RosGraphEnv(GraphCalls):
         if task != self._task_sent:  # latched: perception keeps it (and builds its models once)
             self.task_pub.publish(String(data=task))
             self._task_sent = task
-        self._estimates = {}
-        self.last_estimate = None
+        self._estimates, self.last_estimate = {}, None
         self.grasps.clear()
         if not self.wait_for_state(self.t["state"], after=count):
             raise GraphCallError("no joint_states from the driver after reset", reason="TIMEOUT")
@@ -180,6 +178,10 @@ class RosGraphEnv(GraphCalls):
     def true_object_poses(self, stamps) -> dict[int, dict[str, np.ndarray]]:
         """The sim's true object poses of the periods stamped `stamps` (ns), in one state_history call."""
         return self.history.true_object_poses(stamps)
+
+    def true_object_joints(self, stamps) -> dict[int, dict[str, float]]:
+        """Articulated objects' joint values of those periods (that call's answer again: no second call)."""
+        return self.history.object_joints(stamps)
 
     def load_demos(self, task: str) -> None:
         """Have skill_replay load the run's source demos before the first attempt (raises with its
@@ -332,8 +334,8 @@ class RosGraphEnv(GraphCalls):
     def _executed_periods(self, after_ns: int) -> list[Observation]:
         """One observation per trajectory period the driver ran after `after_ns` (state_history)."""
         return [Observation(ee_pose=Pose.from_matrix(T := self.kin.fk(q)), gripper=f, joint_positions=q,
-                            object_poses=self._belief(T), stamp_ns=t, true_object_poses=truth)
-                for t, q, f, truth in self.history.trajectory_periods(after_ns)]
+                            object_poses=self._belief(T), stamp_ns=t, true_object_poses=truth, object_joints=j)
+                for t, q, f, truth, j in self.history.trajectory_periods(after_ns)]
 
     def _planned_samples(self, trajectory) -> list[Observation]:
         """A driver without state_history: the planned trajectory at the control rate (commanded)."""
@@ -400,11 +402,8 @@ class RosGraphEnv(GraphCalls):
     def step(self, target: Pose, gripper: float) -> Observation:
         """One OSC command (MimicGen's interpolation steps); waits for the driver's next joint_states."""
         _, count = self._joints.snapshot()
-        msg = OscTarget()
-        msg.header.frame_id = "world"
-        msg.header.stamp = self.node.get_clock().now().to_msg()
-        msg.pose = convert.pose_to_msg(target)
-        msg.gripper = float(gripper)
+        msg = OscTarget(pose=convert.pose_to_msg(target), gripper=float(gripper))
+        msg.header.frame_id, msg.header.stamp = "world", self.node.get_clock().now().to_msg()
         self._moved = True
         self.osc_pub.publish(msg)
         if not self.wait_for_state(self.t["state"], after=count):

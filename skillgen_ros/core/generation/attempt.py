@@ -317,13 +317,15 @@ class _Attempt:
         finally:
             self._timed("skill", t)
         objects = dict(self.obs.object_poses)
-        beliefs, stamps, truth = (steps.get(k) for k in ("object_poses", "stamps_ns", "true_object_poses"))
+        beliefs, stamps, truth, joints = (steps.get(k) for k in ("object_poses", "stamps_ns", "true_object_poses",
+                                                                 "object_joints"))
         fingers = steps.get("fingers", np.repeat(np.asarray(steps["gripper_widths"])[:, None] / 2, 2, axis=1))
         for k in range(len(steps["actions"])):  # per step what the env has: stamps, the sim's truth, beliefs
             obs = Observation(ee_pose=steps["ee_poses"][k], gripper=fingers[k],
                               joint_positions=steps["joint_positions"][k],
                               object_poses=beliefs[k] if beliefs is not None else objects,
                               true_object_poses=truth[k] if truth is not None else None,
+                              object_joints=joints[k] if joints is not None else None,
                               stamp_ns=int(stamps[k]) if stamps is not None else None)
             a = steps["actions"][k]
             self.rec.add(obs, a, steps["actions_abs"][k][:7], float(steps["actions_abs"][k][7]),
@@ -377,7 +379,7 @@ def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: Ta
         reason = FailureReason(e.reason) if e.reason in FailureReason._value2member_map_ else FailureReason.TIMEOUT
         message = f"a node did not answer: {e}"
     try:
-        a.rec.resolve_from(getattr(env, "true_object_poses", None))
+        a.rec.resolve_from(getattr(env, "true_object_poses", None), getattr(env, "true_object_joints", None))
     except (SkillGenError, TimeoutError) as e:  # the steps cannot be recorded truthfully: keep none of them
         reason, message = FailureReason.TIMEOUT, f"true object poses of the attempt's steps: {e}"
         a.rec = EpisodeRecorder(config.observation_source)

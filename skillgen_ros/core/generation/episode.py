@@ -52,7 +52,8 @@ class Observation:
     true_object_poses: Mapping[str, np.ndarray] | None = None
     stamp_ns: int | None = None  # the state's time stamp (sim time in lockstep), ns; None = unknown
     # articulated objects' joint values at this state ({"coffee_machine/lid": rad}, as the driver's
-    # object_joint_states names them); None = not known (the graph's history carries none yet)
+    # object_joint_states names them; {} = the scene has none); None = not known (yet: the graph
+    # fills them in by `stamp_ns` after the attempt, from the driver's history, as the true poses)
     object_joints: Mapping[str, float] | None = None
 
     def __post_init__(self):
@@ -143,10 +144,19 @@ class EpisodeRecorder:
             return []
         return [o.stamp_ns for o in self._obs if o.true_object_poses is None and o.stamp_ns is not None]
 
-    def resolve(self, truth: Mapping[int, Mapping]) -> None:
-        """Fill in true object poses by stamp (stamp ns -> id -> pose), e.g. from the driver's history."""
+    def unresolved_joint_stamps(self) -> list[int]:
+        """Stamps of recorded steps whose articulated joint values are still to be looked up (either source:
+        obs/<id>_joints is the sim's in both, as in-process)."""
+        return [o.stamp_ns for o in self._obs if o.object_joints is None and o.stamp_ns is not None]
+
+    def resolve(self, truth: Mapping[int, Mapping], joints: Mapping[int, Mapping] | None = None) -> None:
+        """Fill in true object poses (stamp ns -> id -> pose) and joint values (stamp ns -> name -> value)
+        by stamp where a step lacks them, e.g. from the driver's history."""
+        joints = joints or {}
         self._obs = [replace(o, true_object_poses=truth[o.stamp_ns])
                      if o.true_object_poses is None and o.stamp_ns in truth else o for o in self._obs]
+        self._obs = [replace(o, object_joints=dict(joints[o.stamp_ns]))
+                     if o.object_joints is None and o.stamp_ns in joints else o for o in self._obs]
 
     def require_ground_truth(self, obs: Observation, lookup) -> None:
         """observation_source ground_truth: raise NO_GROUND_TRUTH unless `obs` has true poses or the
@@ -164,15 +174,20 @@ class EpisodeRecorder:
                                     f"poses ({e}); use observation_source estimate on a real robot",
                                     reason="NO_GROUND_TRUTH") from e
 
-    def resolve_from(self, lookup) -> None:
-        """Steps recorded with only a stamp (the graph's skill steps) get their true object poses in
-        one lookup(stamps) -> {stamp: {id: pose}} (RosGraphEnv.true_object_poses: the driver's history)."""
+    def resolve_from(self, lookup, joints_lookup=None) -> None:
+        """Steps recorded with only a stamp (the graph's observed steps) get their true object poses in
+        one lookup(stamps) -> {stamp: {id: pose}} (RosGraphEnv.true_object_poses: the driver's history),
+        and their articulated joint values from joints_lookup(stamps) -> {stamp: {name: value}}
+        (RosGraphEnv.true_object_joints); without a joints_lookup they stay unknown (NaN rows)."""
         stamps = self.unresolved_stamps()
         if stamps:
             if lookup is None:
                 raise InvalidInputError("steps lack true object poses and the env cannot look them up",
                                         reason="NO_GROUND_TRUTH")
             self.resolve(lookup(stamps))
+        stamps = self.unresolved_joint_stamps()
+        if stamps and joints_lookup is not None:
+            self.resolve({}, joints_lookup(stamps))
 
     def _object_poses(self, ids) -> dict[str, np.ndarray]:
         if self.source == "estimate":

@@ -15,6 +15,10 @@ from skillgen_ros.core.errors import NoAnswerError
 from skillgen_ros.nodes.latest import wait_future
 from skillgen_ros.nodes.state_history import ns
 
+from skillgen_interfaces.srv import StateHistory
+
+WAKE_AFTER_S = 1.0  # GraphCalls._await_step: a quiet lockstep driver is woken after this long
+
 # A server that has gone: the reason the attempt fails with if it does not come back in time.
 _GONE_REASON = {"reset_scene": "TIMEOUT", "task_success": "TIMEOUT", "estimate_poses": "PERCEPTION_FAILED",
                 "plan_to_pose": "PLAN_FAILED", "replay_skill": "SKILL_FAILED"}
@@ -96,3 +100,22 @@ class GraphCalls:
         if m is not None and self._reset_ns is not None and ns(m.header.stamp) < self._reset_ns:
             raise GraphCallError("the driver restarted during the attempt (its clock went back); its world is "
                                  "not this attempt's", reason="TIMEOUT")
+
+    def _await_step(self, count: int) -> bool:
+        """The driver's next joint_states after an osc_target (the `count`-th taken before sending it).
+
+        rclpy 7.1's single-threaded executor can park a lockstep driver in its wait set with the
+        osc_target subscription and its hold timer left out: in full test runs the driver's stack
+        sat in `wait_set.wait`, it published nothing for 10 s, and its next service request undid
+        it (test_hsp_graph, CI). So after each quiet second this sends the driver a cheap
+        state_history request (answer unused): a request is new work that wakes its executor."""
+        end = time.monotonic() + float(self.t["state"])
+        while True:
+            left = end - time.monotonic()
+            if self.wait_for_state(max(0.0, min(WAKE_AFTER_S, left)), after=count):
+                return True
+            if left <= WAKE_AFTER_S:
+                return False
+            newest = self._joints.msg  # ask for the periods after the newest state seen: few or none
+            if newest is not None and self.history.ready():
+                self.history.client.call_async(StateHistory.Request(after=newest.header.stamp))

@@ -406,7 +406,7 @@ class RosGraphEnv(GraphCalls):
         msg.header.frame_id, msg.header.stamp = "world", self.node.get_clock().now().to_msg()
         self._moved = True
         self.osc_pub.publish(msg)
-        if not self.wait_for_state(self.t["state"], after=count):
+        if not self._await_step(count):
             raise GraphCallError("driver did not step after an osc_target", reason="TIMEOUT")
         return self.observe()
 

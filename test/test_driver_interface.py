@@ -329,3 +329,35 @@ def test_state_history_answers_each_published_period(start_node, client):
     old = client.call(hist, StateHistory.Request(after=before))
     assert not old.success and old.reason_code == "HISTORY_EXPIRED"
     assert proc.proc.poll() is None, "driver died"
+
+
+def test_a_resent_osc_target_is_applied_once_and_answered_again(start_node, client):
+    """Lockstep: the same osc_target again (same header stamp: graph_calls._await_step's resend when
+    no state came) does not step the world twice; the driver publishes that period's state again.
+    A new stamp steps as usual."""
+    from builtin_interfaces.msg import Time
+    from skillgen_interfaces.srv import StateHistory
+
+    start_node("mock_driver", "--ros-args", "--params-file", str(REPO / "params" / "mock_driver.yaml"),
+               "-p", "lockstep_timeout_s:=30.0")
+    hist = client.node.create_client(StateHistory, "state_history")
+    assert hist.wait_for_service(timeout_sec=20.0)
+    seen = []
+    client.node.create_subscription(JointState, "joint_states", seen.append, 100)
+    assert client.reset("Square", "D0", 0).success
+    assert client.spin_until(lambda: len(seen) >= 1)
+    reset_stamp, n0 = seen[-1].header.stamp, len(seen)
+    msg = OscTarget(pose=PoseMsg(position=Point(x=0.5, y=0.0, z=0.3), orientation=Quaternion(x=1.0, w=0.0)),
+                    gripper=-1.0)
+    msg.header.frame_id, msg.header.stamp = "world", Time(sec=7, nanosec=1)
+    for k, stamp in enumerate([(7, 1), (7, 1), (7, 2)]):
+        msg.header.stamp = Time(sec=stamp[0], nanosec=stamp[1])
+        client.pub.publish(msg)
+        assert client.spin_until(lambda: len(seen) >= n0 + k + 1)
+    assert _stamp(seen[n0].header.stamp) == _stamp(seen[n0 + 1].header.stamp)  # the resend: the same state
+    assert seen[n0].position == seen[n0 + 1].position
+    assert _stamp(seen[n0 + 2].header.stamp) > _stamp(seen[n0].header.stamp)  # a new target: the next period
+    before = Time(sec=reset_stamp.sec, nanosec=reset_stamp.nanosec - 1) if reset_stamp.nanosec else \
+        Time(sec=reset_stamp.sec - 1, nanosec=999_999_999)
+    r = client.call(hist, StateHistory.Request(after=before))
+    assert list(r.kinds) == [StateHistory.Response.RESET] + [StateHistory.Response.OSC_TARGET] * 2

@@ -143,7 +143,8 @@ def main(argv=None) -> int:
     ap.add_argument("--modes", nargs="+", default=["in_process", "graph"])
     ap.add_argument("--workers", nargs="+", type=int, default=[1, 2])
     ap.add_argument("--perception", default="estimate", choices=["estimate", "ground_truth"])
-    ap.add_argument("--domains", nargs=2, type=int, default=[160, 200], help="graph workers' ROS domain ids [lo, hi)")
+    ap.add_argument("--domains", nargs=2, type=int, default=[80, 100],
+                    help="graph workers' ROS domain ids [lo, hi): inside testing.domains.VALID_IDS (Fast DDS ports below the ephemeral range)")
     ap.add_argument("--cluster", type=int, default=0, help="run the N-node cluster check instead")
     ap.add_argument("--compare-serial", action="store_true", help="cluster check: also run serially and compare")
     ap.add_argument("--force", action="store_true")

@@ -110,6 +110,8 @@ class DriverNode(DriverActions, Node):
         self.busy = False           # an action is driving the world (lockstep) or a trajectory runs
         self._pending: tuple[Pose, float] | None = None
         self._last_step_wall = time.monotonic()
+        self._last_target = (0, 0)  # header stamp of the last osc_target applied (lockstep resends)
+        self._last_js = None  # the last joint_states message published (answers a resend)
         self._types: dict[str, str] = {}
         self._clock_base = 0.0  # lockstep: sim seconds of earlier scenes, so /clock never goes back
         if int(self.param("history_periods")) < 1:
@@ -211,6 +213,12 @@ class DriverNode(DriverActions, Node):
         if self.busy:
             return self._report(SkillGenError("osc_target ignored while an action drives the robot", "BUSY"))
         if self.mode == "lockstep":
+            key = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+            if key != (0, 0) and key == self._last_target:  # a client's resend (graph_calls.RESEND_AFTER_S):
+                if self._last_js is not None:  # applied once; it gets this period's state again
+                    self.pub_js.publish(self._last_js)
+                return
+            self._last_target = key
             self._advance(lambda: self.world.step(target, grip), StateHistory.Response.OSC_TARGET)
         else:
             self._pending = (target, grip)
@@ -265,7 +273,8 @@ class DriverNode(DriverActions, Node):
             self.pub_wrench.publish(convert.wrench_stamped(w.ee_wrench(), self.frame, stamp))
         if wanted(self.pub_js):
             qd = np.concatenate([w.joint_velocities(), np.zeros(2)])
-            self.pub_js.publish(convert.joint_state(ARM_JOINTS + FINGER_JOINTS, q, qd, stamp=stamp))
+            self._last_js = convert.joint_state(ARM_JOINTS + FINGER_JOINTS, q, qd, stamp=stamp)
+            self.pub_js.publish(self._last_js)
         if wanted(self.pub_grip):
             self.pub_grip.publish(GripperState(header=header, width=float(w.gripper_width()),
                                                command=float(w.gripper_command), grasping=bool(w.is_grasping())))

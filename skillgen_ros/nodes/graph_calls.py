@@ -15,9 +15,8 @@ from skillgen_ros.core.errors import NoAnswerError
 from skillgen_ros.nodes.latest import wait_future
 from skillgen_ros.nodes.state_history import ns
 
-from skillgen_interfaces.srv import StateHistory
-
-WAKE_AFTER_S = 1.0  # GraphCalls._await_step: a quiet lockstep driver is woken after this long
+# GraphCalls._await_step / skill_replay: an osc_target without a new state this long is sent again
+RESEND_AFTER_S = 1.0
 
 # A server that has gone: the reason the attempt fails with if it does not come back in time.
 _GONE_REASON = {"reset_scene": "TIMEOUT", "task_success": "TIMEOUT", "estimate_poses": "PERCEPTION_FAILED",
@@ -101,21 +100,30 @@ class GraphCalls:
             raise GraphCallError("the driver restarted during the attempt (its clock went back); its world is "
                                  "not this attempt's", reason="TIMEOUT")
 
-    def _await_step(self, count: int) -> bool:
-        """The driver's next joint_states after an osc_target (the `count`-th taken before sending it).
+    def _await_step(self, msg, snap, count: int) -> bool:
+        """Publish the osc_target `msg` and take the driver's next joint_states: after the `count`-th
+        message and stamped after `snap`, the newest state taken before sending.
 
-        rclpy 7.1's single-threaded executor can park a lockstep driver in its wait set with the
-        osc_target subscription and its hold timer left out: in full test runs the driver's stack
-        sat in `wait_set.wait`, it published nothing for 10 s, and its next service request undid
-        it (test_hsp_graph, CI). So after each quiet second this sends the driver a cheap
-        state_history request (answer unused): a request is new work that wakes its executor."""
-        end = time.monotonic() + float(self.t["state"])
+        In full test runs a lockstep driver sometimes neither stepped nor answered within 10 s of
+        the first osc_target after an executed trajectory (test_hsp_graph on CI; the driver's stack
+        idle in its executor's wait, no warning logged, so either the target or the state it
+        published did not arrive). A target the driver has not applied is harmless to resend and
+        one it has applied must not be applied twice, so after each quiet RESEND_AFTER_S this sends
+        the same message again (same header stamp): the driver applies a stamp once and answers a
+        repeat with that period's state again (driver_base._on_target)."""
+        before = ns(snap.header.stamp) if snap is not None else -1
+        end, sent = time.monotonic() + float(self.t["state"]), 0
         while True:
+            self.osc_pub.publish(msg)
+            sent += 1
             left = end - time.monotonic()
-            if self.wait_for_state(max(0.0, min(WAKE_AFTER_S, left)), after=count):
+            # not the state we had again (the driver answers a resend it already applied with it)
+            m = self._joints.wait_for(lambda m: self._joints.count > count and m is not None
+                                      and ns(m.header.stamp) != before, max(0.0, min(RESEND_AFTER_S, left)))
+            if self._take_joints(m):
+                if sent > 1:
+                    self.node.get_logger().warning(f"osc_target answered after {sent} sends (no state within "
+                                                   f"{RESEND_AFTER_S:g} s of the first)")
                 return True
-            if left <= WAKE_AFTER_S:
+            if left <= RESEND_AFTER_S:
                 return False
-            newest = self._joints.msg  # ask for the periods after the newest state seen: few or none
-            if newest is not None and self.history.ready():
-                self.history.client.call_async(StateHistory.Request(after=newest.header.stamp))

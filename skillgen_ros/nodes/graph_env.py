@@ -401,12 +401,11 @@ class RosGraphEnv(GraphCalls):
 
     def step(self, target: Pose, gripper: float) -> Observation:
         """One OSC command (MimicGen's interpolation steps); waits for the driver's next joint_states."""
-        _, count = self._joints.snapshot()
+        snap, count = self._joints.snapshot()
         msg = OscTarget(pose=convert.pose_to_msg(target), gripper=float(gripper))
         msg.header.frame_id, msg.header.stamp = "world", self.node.get_clock().now().to_msg()
         self._moved = True
-        self.osc_pub.publish(msg)
-        if not self._await_step(count):
+        if not self._await_step(msg, snap, count):
             raise GraphCallError("driver did not step after an osc_target", reason="TIMEOUT")
         return self.observe()
 

@@ -49,6 +49,7 @@ from skillgen_ros.core.skills.transform import matrix_to_array
 from skillgen_ros.core.tasks import get_task
 from skillgen_ros.nodes import convert
 from skillgen_ros.nodes.feedback import RESULT_TIMEOUT_S, FeedbackThrottle
+from skillgen_ros.nodes.graph_calls import RESEND_AFTER_S
 from skillgen_ros.nodes.runtime import run_node
 
 
@@ -77,6 +78,7 @@ class SkillReplayNode(Node):
         self._index: tuple[tuple, list[int], list[int]] | None = None  # (names, arm idx, finger idx)
         self._waiter: tuple[int, Future] | None = None  # (state count to exceed, future the goal awaits)
         self._deadline = float("inf")
+        self._resend, self._resend_at = None, float("inf")  # the osc_target a step waits on (resent)
         self.create_subscription(JointState, "joint_states", self._on_joints, 10)  # arm + fingers
         self.osc_pub = self.create_publisher(OscTarget, "osc_target", 10)
         self._busy = False
@@ -94,6 +96,8 @@ class SkillReplayNode(Node):
             if not all(j in pos for j in ARM_JOINTS):
                 return  # e.g. a gripper-only joint_states: not a robot state
             self._index = (names, [pos[j] for j in ARM_JOINTS], [pos[j] for j in FINGER_JOINTS if j in pos])
+        if self._state is not None and msg.header.stamp == self._state.header.stamp:
+            return  # the driver's answer to a resent target it had applied: the state we have
         self._state = msg
         self._state_count += 1
         if self._waiter is not None and self._state_count > self._waiter[0]:
@@ -115,6 +119,11 @@ class SkillReplayNode(Node):
     def _on_watchdog(self):
         if self._waiter is not None and time.monotonic() > self._deadline:
             self._resolve(None)
+        elif self._waiter is not None and self._resend is not None and time.monotonic() > self._resend_at:
+            self._resend_at = time.monotonic() + RESEND_AFTER_S  # no state yet: the same target again
+            self.osc_pub.publish(self._resend)  # (same stamp: applied once, graph_calls._await_step)
+            self.get_logger().warning("osc_target sent again: no state within "
+                                      f"{RESEND_AFTER_S:g} s", throttle_duration_sec=5.0)
 
     async def _wait_state(self, after: int, timeout: float) -> JointState | None:
         """The first joint state after the `after`-th one, or None after `timeout` s (watchdog)."""
@@ -122,6 +131,7 @@ class SkillReplayNode(Node):
             return self._state
         fut = Future()
         self._waiter, self._deadline = (after, fut), time.monotonic() + timeout
+        self._resend_at = time.monotonic() + RESEND_AFTER_S
         return await fut
 
     # -- action
@@ -231,7 +241,9 @@ class SkillReplayNode(Node):
             widths.append(width)
             stamps.append(state.header.stamp)
             self.osc_pub.publish(msg)
+            self._resend = msg
             state = await self._wait_state(count, timeout)
+            self._resend = None
             if state is None:
                 self._fill(res, actions, abs_, ees, qs, widths, stamps, plan.recovery[:k + 1])
                 return finish(False, "TIMEOUT", f"driver did not step within {timeout} s at step {k}")

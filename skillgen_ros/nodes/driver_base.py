@@ -8,7 +8,9 @@ Timing modes (parameter timing_mode):
 - lockstep: the world advances one control period per received osc_target, or after
   lockstep_timeout_s of wall time without one (holding the last command). While an
   execute_trajectory / gripper_command goal runs, the action advances the world itself. /clock
-  carries the world time, and every stamp is world time.
+  carries the world time, and every stamp is world time. An osc_target with the header stamp of
+  the last one applied (a client's resend, nodes/graph_calls.py) is not applied again: the
+  driver publishes that period's joint_states again instead (stamp 0 is never a repeat).
 Bad input never stops the driver: services answer with a reason code, actions with an error code,
 and rejected osc_target messages are logged and published as "REASON: message" on driver/errors;
 the robot keeps its previous command. Targets more than 0.10 m outside the workspace box are

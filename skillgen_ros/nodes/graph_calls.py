@@ -102,7 +102,7 @@ class GraphCalls:
 
     def _await_step(self, msg, snap, count: int) -> bool:
         """Publish the osc_target `msg` and take the driver's next joint_states: after the `count`-th
-        message and stamped after `snap`, the newest state taken before sending.
+        message and not stamped as `snap`, the newest state taken before sending.
 
         In full test runs a lockstep driver sometimes neither stepped nor answered within 10 s of
         the first osc_target after an executed trajectory (test_hsp_graph on CI; the driver's stack

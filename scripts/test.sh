@@ -8,9 +8,18 @@ cd "$ROOT"
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export AMENT_PREFIX_PATH="$ROOT/.venv${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
 export PYTHONUNBUFFERED=1 MPLBACKEND=Agg
+# test_hsp_graph.py runs in a pytest process of its own: after the rest of the suite in the same
+# process its deploy graph's driver stops taking osc_target for 10 s+ after an executed trajectory
+# (never when the module runs alone; an open defect, see docs/hsp.md "Known problems").
+ISOLATED=test/test_hsp_graph.py
 set +e
-"$ROOT/.venv/bin/python" -m pytest -q -p no:cacheprovider "$@" test
+"$ROOT/.venv/bin/python" -m pytest -q -p no:cacheprovider "$@" --ignore="$ISOLATED" test
 rc=$?
+"$ROOT/.venv/bin/python" -m pytest -q -p no:cacheprovider "$@" "$ISOLATED"
+rc2=$?
 set -e
-if [ $rc -eq 5 ]; then echo "pytest collected no tests: that is a failure (issue 19)" >&2; exit 1; fi
-exit $rc
+if [ $rc -eq 5 ] && [ $rc2 -eq 5 ]; then echo "pytest collected no tests: that is a failure (issue 19)" >&2; exit 1; fi
+[ $rc -eq 5 ] && rc=0
+[ $rc2 -eq 5 ] && rc2=0
+[ $rc -ne 0 ] && exit $rc
+exit $rc2

@@ -35,10 +35,7 @@ def graph(checkpoint):
         args = n.ros_args()
         if n.exe == "hsp":
             args += ["-p", f"skill_max_steps:={SKILL_MAX_STEPS}"]
-        # UDP only: in full suite runs (never alone) the driver stopped receiving osc_target for 10 s+
-        # after an executed trajectory, resends included; earlier tests leave Fast DDS shared-memory
-        # ports of SIGKILLed nodes behind (eProsima/Fast-DDS#5053-like). See the session 16 note.
-        procs[n.exe] = NodeProcess(n.exe, dom, args, FASTDDS_BUILTIN_TRANSPORTS="UDPv4")
+        procs[n.exe] = NodeProcess(n.exe, dom, args)
     client = HspClient(domain_id=dom)
     try:
         assert client.wait_for_server(180), "hsp did not come up (or never answered a probe goal)"

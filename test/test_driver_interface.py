@@ -288,28 +288,35 @@ def test_capture_without_cameras_says_so(mock_driver, client):
     assert not r.success and r.reason_code == "NO_CAMERAS"
 
 
-def test_state_history_answers_each_published_period(start_node, client):
-    """state_history: every published state in order, stamped as its joint_states, with what drove
-    it and the world's object poses; an expired start or a span over a reset answers with a reason."""
+def _mock_after_reset(start_node, client, *params):
+    """A lockstep mock driver (no timeout holds) reset to Square D0: (process, state_history client,
+    the joint_states seen so far, a stamp just before the reset's state)."""
+    from builtin_interfaces.msg import Time
     from skillgen_interfaces.srv import StateHistory
 
     proc = start_node("mock_driver", "--ros-args", "--params-file", str(REPO / "params" / "mock_driver.yaml"),
-                      "-p", "lockstep_timeout_s:=30.0", "-p", "history_periods:=8")
+                      "-p", "lockstep_timeout_s:=30.0", *params)
     hist = client.node.create_client(StateHistory, "state_history")
     assert hist.wait_for_service(timeout_sec=20.0)
     seen = []
     client.node.create_subscription(JointState, "joint_states", seen.append, 100)
     assert client.reset("Square", "D0", 0).success
     assert client.spin_until(lambda: len(seen) >= 1)
-    reset_stamp = seen[-1].header.stamp
+    t = seen[-1].header.stamp
+    before = Time(sec=t.sec, nanosec=t.nanosec - 1) if t.nanosec else Time(sec=t.sec - 1, nanosec=999_999_999)
+    return proc, hist, seen, before
+
+
+def test_state_history_answers_each_published_period(start_node, client):
+    """state_history: every published state in order, stamped as its joint_states, with what drove
+    it and the world's object poses; an expired start or a span over a reset answers with a reason."""
+    from skillgen_interfaces.srv import StateHistory
+
+    proc, hist, seen, before = _mock_after_reset(start_node, client, "-p", "history_periods:=8")
     n0 = len(seen)
     for k in range(3):
         client.target([0.5, 0.0, 0.3])
         assert client.spin_until(lambda: len(seen) >= n0 + k + 1)
-    from builtin_interfaces.msg import Time
-
-    before = Time(sec=reset_stamp.sec, nanosec=reset_stamp.nanosec - 1) if reset_stamp.nanosec else \
-        Time(sec=reset_stamp.sec - 1, nanosec=999_999_999)
     r = client.call(hist, StateHistory.Request(after=before))
     assert r.success, r.message
     assert [_stamp(t) for t in r.stamps] == [_stamp(m.header.stamp) for m in seen[-4:]]
@@ -338,15 +345,8 @@ def test_a_resent_osc_target_is_applied_once_and_answered_again(start_node, clie
     from builtin_interfaces.msg import Time
     from skillgen_interfaces.srv import StateHistory
 
-    start_node("mock_driver", "--ros-args", "--params-file", str(REPO / "params" / "mock_driver.yaml"),
-               "-p", "lockstep_timeout_s:=30.0")
-    hist = client.node.create_client(StateHistory, "state_history")
-    assert hist.wait_for_service(timeout_sec=20.0)
-    seen = []
-    client.node.create_subscription(JointState, "joint_states", seen.append, 100)
-    assert client.reset("Square", "D0", 0).success
-    assert client.spin_until(lambda: len(seen) >= 1)
-    reset_stamp, n0 = seen[-1].header.stamp, len(seen)
+    _proc, hist, seen, before = _mock_after_reset(start_node, client)
+    n0 = len(seen)
     msg = OscTarget(pose=PoseMsg(position=Point(x=0.5, y=0.0, z=0.3), orientation=Quaternion(x=1.0, w=0.0)),
                     gripper=-1.0)
     msg.header.frame_id, msg.header.stamp = "world", Time(sec=7, nanosec=1)
@@ -357,7 +357,5 @@ def test_a_resent_osc_target_is_applied_once_and_answered_again(start_node, clie
     assert _stamp(seen[n0].header.stamp) == _stamp(seen[n0 + 1].header.stamp)  # the resend: the same state
     assert seen[n0].position == seen[n0 + 1].position
     assert _stamp(seen[n0 + 2].header.stamp) > _stamp(seen[n0].header.stamp)  # a new target: the next period
-    before = Time(sec=reset_stamp.sec, nanosec=reset_stamp.nanosec - 1) if reset_stamp.nanosec else \
-        Time(sec=reset_stamp.sec - 1, nanosec=999_999_999)
     r = client.call(hist, StateHistory.Request(after=before))
     assert list(r.kinds) == [StateHistory.Response.RESET] + [StateHistory.Response.OSC_TARGET] * 2

@@ -166,15 +166,23 @@ def test_a_killed_worker_s_range_runs_again_and_every_index_is_there_once(pool, 
 
     def kill_mid_range(_p, statuses):  # a worker one attempt into a 2-attempt range: that attempt is lost
         for s in statuses:
-            if not killed and s.range and s.range[1] - s.range[0] >= 2 and s.attempts == 1:
+            if not killed and s.range and s.range[1] - s.range[0] >= 2 and 1 <= s.attempts < s.range[1] - s.range[0]:
                 os.kill(s.pid, signal.SIGKILL)
                 killed.append(s)
 
-    run = run_distributed(pool, _req(tmp_path / "k"), on_progress=kill_mid_range, status_every_s=0.0)
-    assert killed, "no worker was caught mid-range"
+    # The window (a worker between its range's attempts) lasts one attempt, and the driver samples
+    # statuses between polls: on a loaded machine a run can pass without one. Such a run must still
+    # equal the serial one; the test needs one run (of at most 4) in which the kill landed.
+    for tries in range(4):
+        out = tmp_path / f"k{tries}"
+        run = run_distributed(pool, _req(out), on_progress=kill_mid_range, status_every_s=0.0)
+        assert _indices(out) == list(range(ATTEMPTS))  # none missing, none twice
+        _assert_equals_serial(out, serial[0])
+        if killed:
+            break
+        assert run.lost_ranges == 0
+    assert killed, "no worker was caught mid-range in 4 runs"
     assert run.lost_ranges == 1
-    assert _indices(tmp_path / "k") == list(range(ATTEMPTS))  # none missing, none twice
-    _assert_equals_serial(tmp_path / "k", serial[0])
     assert killed[0].pid not in {s.pid for s in pool.statuses(timeout=60)}, "Ray restarted the killed worker"
 
 

@@ -124,10 +124,34 @@ def rows() -> list[tuple[str, str, str, str]]:
                 f"{(get(rt, 'baseline_null_subscriber.lost./camera/front/points') or 0) + (get(rt, 'baseline_null_subscriber.lost./joint_states') or 0) if rt else 'not run'}",
                 "goal 0", "recorder_throughput"))
     out.append(("recorder write rate", f"{num(get(rt, 'recorder.bag_mb_per_s'), '{:.0f}')} MB/s", "", "recorder_throughput"))
+    out += distributed_rows(load("distributed"))
     tasks = get(so, "tasks", {}) or {}
     out.append(("source demos replayed open-loop", ", ".join(f"{t} {v.get('successes')}/{v.get('demos')}" for t, v in tasks.items())
                 or "not run", "goal >= 9/10 per task", "source_demos"))
     return out
+
+
+def distributed_rows(d: dict) -> list[tuple[str, str, str, str]]:
+    """Issue 21's figures: the 48-attempt Square D0 cells, mean over the seeds run (summary)."""
+    sm = get(d, "summary", {}) or {}
+
+    def g(mode, w, field):
+        return get(sm, f"{mode}/w{w}/Square/D0/estimate/n48.{field}.mean")
+
+    if not sm:
+        return []
+    return [
+        ("Ray efficiency at 2 workers, in-process / graph (Square D0, 48 attempts, 3 seeds)",
+         f"{pct(g('in_process', 2, 'efficiency'))} / {pct(g('graph', 2, 'efficiency'))}",
+         "goal >= 85% (2 cores: a graph worker uses 1.1)", "distributed"),
+        ("Ray overhead per attempt, in-process / graph (2 workers)",
+         f"{pct(g('in_process', 2, 'ray_overhead_share'))} / {pct(g('graph', 2, 'ray_overhead_share'))}",
+         "goal <= 5%", "distributed"),
+        ("demos/h per busy core, graph mode with estimated poses, 1 / 2 workers",
+         f"{num(g('graph', 1, 'demos_per_hour_per_busy_core'), '{:.0f}')} / "
+         f"{num(g('graph', 2, 'demos_per_hour_per_busy_core'), '{:.0f}')}",
+         "MimicGen ~100 (CPU), Isaac Lab Mimic SkillGen 500-670 (RTX GPU)", "distributed"),
+    ]
 
 
 PROFILE_LABEL = {"paper": "paper's algorithm", "skillgen_ros": "ours (skillgen_ros)"}

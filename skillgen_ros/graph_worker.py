@@ -43,7 +43,8 @@ class GraphRunner:
         env["ROS_DOMAIN_ID"] = str(self.lease.id)
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
         params = ["--ros-args", "-p", f"datagen:observation_source:={req.observation_source}",
-                  "-p", f"datagen:action_noise:={req.action_noise}"]
+                  "-p", f"datagen:action_noise:={req.action_noise}",
+                  "-p", "datagen:write_report:=false"]  # the driver writes the run's report
         self.proc = subprocess.Popen([sys.executable, "-m", "skillgen_ros.cli.main", "launch", spec.graph, *params],
                                      env=dict(env), start_new_session=True, preexec_fn=_die_with_parent(os.getpid()))
         from skillgen_ros.client import SkillGenClient

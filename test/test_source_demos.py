@@ -218,3 +218,20 @@ def test_a_shipped_demo_still_replays_in_the_current_sim(task):
                                       "`skillgen demos make --task all --force`")
     finally:
         world.close()
+
+
+def test_the_demo_cache_parses_a_bag_set_once_and_again_when_a_file_changes(tmp_path):
+    bag = _copy_demo(tmp_path)
+    cache, task = B.SourceDemoCache(size=1), get_task("Square")
+    first = cache.load([tmp_path], task)
+    assert cache.load([tmp_path], task) is first  # the same bags: not parsed again
+    ann = bag / "annotations.yaml"
+    text = ann.read_text()
+    ann.write_text(text + "\n")  # same content, another size: the bag counts as changed
+    second = cache.load([tmp_path], task)
+    assert second is not first and [d.name for d in second] == [d.name for d in first]
+    other = _copy_demo(tmp_path / "other")
+    assert [d.name for d in cache.load([other], task)] == [first[0].name]
+    assert cache.load([tmp_path], task) is not second, "size=1: the older entry was dropped"
+    with pytest.raises(BagError):
+        cache.load([tmp_path / "missing"], task)

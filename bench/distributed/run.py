@@ -3,7 +3,8 @@
 Scaling: the same request (task, variant, seed, attempts) on 1 and on 2 Ray workers, in-process and
 in graph mode (each worker its own node graph in its own ROS_DOMAIN_ID, perception estimating
 poses). Reported per cell: attempts/hour and demos/hour (wall time of the run, workers already
-up), demos/hour/core, efficiency at N workers = rate(N) / (N * rate(1)), and Ray's overhead per
+up), demos/hour/core (per worker, and per core the machine was really busy: /proc/stat over the
+run, so a graph worker's several processes count), efficiency at N workers = rate(N) / (N * rate(1)), and Ray's overhead per
 attempt (driver round trip of a range minus the worker's own time for it, per attempt, as a share
 of an attempt's time). On a 2-core machine shared with other work, 1 vs 2 workers is all that can
 be measured, and efficiency there also counts the other load.
@@ -12,11 +13,15 @@ Cluster check (--cluster N): a simulated N-node cluster on this machine (ray.clu
 one CPU per node), one node killed after a third of the attempts; the run must still hold each
 index exactly once, with the dataset identical to a serial run of the same request.
 
+Cancel (--cancel): a 2-worker run stopped once a sixth of its attempts are done, timed from the
+stop to the last range coming back, in attempts (the issue's goal: within one attempt's time).
+
 Each finished cell is written to bench/results/distributed.json at once with the command that
 reruns it; a rerun skips cells already there (--force reruns).
 
     python bench/distributed/run.py --attempts 16 --modes in_process graph --workers 1 2
     python bench/distributed/run.py --cluster 3 --attempts 300
+    python bench/distributed/run.py --cancel --attempts 48
 """
 from __future__ import annotations
 
@@ -47,6 +52,13 @@ def _request(a, out: str) -> RunRequest:
                       output_dir=out, source_demos=str(ROOT / "bags" / a.task))
 
 
+def _cpu_jiffies() -> tuple[int, int]:
+    """(busy, total) jiffies of the whole machine (/proc/stat): the cores a run really kept busy."""
+    f = [int(x) for x in Path("/proc/stat").read_text().splitlines()[0].split()[1:]]
+    idle = f[3] + f[4]  # idle + iowait
+    return sum(f) - idle, sum(f)
+
+
 def scaling_cell(a, mode: str, workers: int) -> dict:
     from skillgen_ros.core.distributed.ray_pool import RayPool
 
@@ -58,10 +70,13 @@ def scaling_cell(a, mode: str, workers: int) -> dict:
     pool = RayPool(workers, spec, req, pack_dir(req.source_demos))
     up = time.perf_counter() - t_up
     try:
+        b0, t0 = _cpu_jiffies()
         run = run_distributed(pool, req, write_report=False)
+        b1, t1 = _cpu_jiffies()
     finally:
         pool.close()
         shutil.rmtree(tmp, ignore_errors=True)
+    busy_cores = os.cpu_count() * (b1 - b0) / max(t1 - t0, 1)  # everything on the machine, Ray's own processes too
     per_attempt = run.attempt_seconds / max(run.attempts, 1)
     overhead = sum(run.overhead_seconds) / max(run.attempts, 1)
     return {"mode": mode, "workers": workers, "attempts": run.attempts, "successes": run.successes,
@@ -69,9 +84,42 @@ def scaling_cell(a, mode: str, workers: int) -> dict:
             "attempts_per_hour": round(3600 * run.attempts / run.wall_seconds, 1),
             "demos_per_hour": round(3600 * run.successes / run.wall_seconds, 1),
             "demos_per_hour_per_core": round(3600 * run.successes / run.wall_seconds / min(workers, os.cpu_count()), 1),
+            "busy_cores": round(busy_cores, 2),
+            "demos_per_hour_per_busy_core": round(3600 * run.successes / run.wall_seconds / max(busy_cores, 1e-3), 1),
             "attempt_s_mean": round(per_attempt, 3), "ray_overhead_s_per_attempt": round(overhead, 4),
             "ray_overhead_share": round(overhead / per_attempt, 4) if per_attempt else None,
             "worker_attempts": run.worker_attempts}
+
+
+def cancel_cell(a, mode: str, workers: int = 2) -> dict:
+    """The issue's "cancel stops all workers within one attempt's time": stop a run once a sixth of
+    its attempts are done and time it from the stop to the last worker's range coming back."""
+    from skillgen_ros.core.distributed.ray_pool import RayPool
+
+    tmp = tempfile.mkdtemp(prefix="bench_cancel_")
+    req = _request(a, os.path.join(tmp, "run"))
+    spec = WorkerSpec(mode=mode, perception=a.perception, domain_ids=tuple(range(*a.domains)),
+                      startup_timeout=300.0)
+    pool = RayPool(workers, spec, req, pack_dir(req.source_demos))
+    stop = {}
+
+    def progress(p, _st):
+        if not stop and p.attempts >= max(a.attempts // 6, workers):
+            stop.update(t=time.perf_counter(), attempts=p.attempts)
+
+    try:
+        run = run_distributed(pool, req, on_progress=progress, status_every_s=0.0, write_report=False,
+                              should_stop=lambda: "CANCELED" if stop else "")
+        t_end = time.perf_counter()
+    finally:
+        pool.close()
+        shutil.rmtree(tmp, ignore_errors=True)
+    per_attempt = run.attempt_seconds / max(run.attempts, 1)
+    latency = t_end - stop["t"]
+    return {"mode": mode, "workers": workers, "stopped_early": run.stopped_early, "attempts": run.attempts,
+            "attempts_at_stop": stop["attempts"], "attempts_after_stop": run.attempts - stop["attempts"],
+            "stop_latency_s": round(latency, 3), "attempt_s_mean": round(per_attempt, 3),
+            "stop_latency_in_attempts": round(latency / per_attempt, 3) if per_attempt else None}
 
 
 def cluster_cell(a) -> dict:
@@ -146,6 +194,7 @@ def main(argv=None) -> int:
     ap.add_argument("--domains", nargs=2, type=int, default=[80, 100],
                     help="graph workers' ROS domain ids [lo, hi): inside testing.domains.VALID_IDS (Fast DDS ports below the ephemeral range)")
     ap.add_argument("--cluster", type=int, default=0, help="run the N-node cluster check instead")
+    ap.add_argument("--cancel", action="store_true", help="time a stop of a 2-worker run in each --modes instead")
     ap.add_argument("--compare-serial", action="store_true", help="cluster check: also run serially and compare")
     ap.add_argument("--force", action="store_true")
     ap.add_argument("--out", default=str(OUT))
@@ -167,19 +216,51 @@ def main(argv=None) -> int:
         if a.force or key not in out["cells"]:
             save(key, cluster_cell(a))
         return 0
+    if a.cancel:
+        for mode in a.modes:
+            key = f"cancel/{mode}/w2/{a.task}/{a.variant}/{a.perception}/n{a.attempts}/seed{a.seed}"
+            if a.force or key not in out["cells"]:
+                save(key, cancel_cell(a, mode))
+        out["summary"] = summarize(out["cells"])
+        Path(a.out).write_text(json.dumps(out, indent=1, sort_keys=True))
+        return 0
+
+    def key(mode, w):
+        return f"{mode}/w{w}/{a.task}/{a.variant}/{a.perception}/n{a.attempts}/seed{a.seed}"
+
     for mode in a.modes:
         for w in a.workers:
-            key = f"{mode}/w{w}/{a.task}/{a.variant}/{a.perception}/n{a.attempts}"
-            if a.force or key not in out["cells"]:
-                save(key, scaling_cell(a, mode, w))
-    for mode in a.modes:  # efficiency at each N against the same mode's 1 worker
-        base = out["cells"].get(f"{mode}/w1/{a.task}/{a.variant}/{a.perception}/n{a.attempts}")
+            if a.force or key(mode, w) not in out["cells"]:
+                save(key(mode, w), scaling_cell(a, mode, w))
+    for mode in a.modes:  # efficiency at each N against the same mode's 1 worker, same seed
+        base = out["cells"].get(key(mode, 1))
         for w in a.workers:
-            c = out["cells"].get(f"{mode}/w{w}/{a.task}/{a.variant}/{a.perception}/n{a.attempts}")
+            c = out["cells"].get(key(mode, w))
             if base and c and w > 1:
                 c["efficiency"] = round(c["attempts_per_hour"] / (w * base["attempts_per_hour"]), 3)
+    out["summary"] = summarize(out["cells"])
     Path(a.out).write_text(json.dumps(out, indent=1, sort_keys=True))
     return 0
+
+
+def summarize(cells: dict) -> dict:
+    """Per (mode, workers, task, variant, perception, attempts): mean and range over the seeds run."""
+    import statistics
+
+    groups: dict[str, list] = {}
+    for k, c in cells.items():
+        if "/seed" in k and "mode" in c:
+            groups.setdefault(k.rsplit("/seed", 1)[0], []).append(c)
+    out = {}
+    for g, cs in sorted(groups.items()):
+        row = {"seeds": sorted(c["seed"] for c in cs)}
+        for f in ("efficiency", "attempts_per_hour", "demos_per_hour_per_busy_core", "ray_overhead_share",
+                  "busy_cores", "attempt_s_mean", "stop_latency_s", "stop_latency_in_attempts"):
+            v = [c[f] for c in cs if c.get(f) is not None]
+            if v:
+                row[f] = {"mean": round(statistics.fmean(v), 4), "min": min(v), "max": max(v)}
+        out[g] = row
+    return out
 
 
 if __name__ == "__main__":

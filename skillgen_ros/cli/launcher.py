@@ -71,7 +71,6 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
     With `log_dir` each node's output goes to <log_dir>/<node>.log and only its warnings and
     errors reach the terminal; without, every node streams to the terminal."""
     nodes = load_graph(graph)
-    env = rosenv.node_environment(dict(os.environ))
     logs = None
     if log_dir:
         from skillgen_ros.cli.node_logs import NodeLogs
@@ -79,92 +78,113 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
         logs = NodeLogs(log_dir)
         print(f"[launch] {graph}: node logs in {log_dir} (warnings and errors shown here; --verbose streams all)",
               file=sys.stderr, flush=True)
-
-    def start(label: str, cmd: list[str]) -> subprocess.Popen:
-        if logs is None:
-            return subprocess.Popen(cmd, env=env, preexec_fn=_hold_stop_signals)
-        with logs.open(label) as f:  # the child keeps its own descriptor
-            return subprocess.Popen(cmd, env=env, preexec_fn=_hold_stop_signals, stdout=f, stderr=subprocess.STDOUT)
-
-    procs: list[tuple[str, subprocess.Popen]] = []
-    cmds: dict[str, list[str]] = {}
-    restarts: dict[str, int] = {}
-    stopping = {"flag": False}
-
-    def _forward(signum, _frame):
-        stopping["flag"] = True
-        for _, p in procs:
-            if p.poll() is None:
-                p.send_signal(signum)
-
-    old = {s: signal.signal(s, _forward) for s in (signal.SIGINT, signal.SIGTERM)}
+    g = _Supervisor(rosenv.node_environment(dict(os.environ)), logs, respawn)
+    old = {s: signal.signal(s, g.forward) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        for proc in processes(nodes):
-            if stopping["flag"]:  # Ctrl-C while starting: start no more
-                break
-            cmd = [str(resolve_executable(proc.exe)), *proc.args, *(extra_ros_args or [])]
-            if logs is None:
-                print(f"[launch] starting {proc.label}: {' '.join(cmd)}", file=sys.stderr, flush=True)
-            child = start(proc.label, cmd)
-            procs.append((proc.label, child))
-            cmds[proc.label] = cmd
-            if stopping["flag"]:  # the signal came while this one was starting: it missed the forward
-                child.send_signal(signal.SIGINT)
-        failed: tuple[str, int] | None = None
-        stop_deadline: float | None = None
-        escalated: list[str] = []
-        while True:
-            alive = [(name, p) for name, p in procs if p.poll() is None]
-            if not stopping["flag"]:
-                for i, (name, p) in enumerate(procs):
-                    rc = p.poll()
-                    if rc is None:
-                        continue
-                    if respawn and restarts.get(name, 0) < RESPAWN_MAX:
-                        restarts[name] = restarts.get(name, 0) + 1
-                        print(f"[launch] node '{name}' exited with code {rc}; respawning it "
-                              f"({restarts[name]}/{RESPAWN_MAX})", file=sys.stderr, flush=True)
-                        procs[i] = (name, start(name, cmds[name]))
-                        if stopping["flag"]:  # Ctrl-C came while it started: _forward saw the dead one
-                            procs[i][1].send_signal(signal.SIGINT)
-                        continue
-                    failed = (name, rc)
-                    break
-                if failed:
-                    print(f"[launch] node '{failed[0]}' exited with code {failed[1]}; stopping the graph",
-                          file=sys.stderr, flush=True)
-                    if logs is not None:
-                        print(f"[launch] the end of its log {logs.path(failed[0])}:\n  "
-                              + "\n  ".join(logs.tail(failed[0])), file=sys.stderr, flush=True)
-                    _forward(signal.SIGINT, None)
-                    stopping["flag"] = True
-            if not alive:
-                break
-            if stopping["flag"] and stop_deadline is None:
-                stop_deadline = time.monotonic() + stop_timeout
-            if stop_deadline is not None and time.monotonic() > stop_deadline:
-                escalated = _escalate(alive)
-                if logs is not None:
-                    for name in escalated:
-                        print(f"[launch] {name}'s stacks are in {logs.path(name)}", file=sys.stderr, flush=True)
-                break
-            time.sleep(poll)
-        _wait_all(procs, timeout=10.0)
-        if failed:
-            return failed[1] if failed[1] > 0 else 1
-        bad = [(n, p.returncode) for n, p in procs
-               if n in escalated or p.returncode not in (0, -signal.SIGINT, -signal.SIGTERM)]
-        for n, rc in bad:
-            print(f"[launch] node '{n}' exited with code {rc}", file=sys.stderr)
-        return 1 if bad else 0
+        g.start_all(nodes, extra_ros_args or [])
+        return g.supervise(poll, stop_timeout)
     finally:
         for s, h in old.items():
             signal.signal(s, h)
-        for _, p in procs:
+        for _, p in g.procs:
             if p.poll() is None:
                 p.kill()
         if logs is not None:
             logs.close()
+
+
+class _Supervisor:
+    """A launched graph's processes: started, respawned or stopped as their exits and Ctrl-C say.
+    `forward` is the SIGINT/SIGTERM handler: it can run between any two lines of the rest."""
+
+    def __init__(self, env: dict, logs, respawn: bool):
+        self.env, self.logs, self.respawn = env, logs, respawn
+        self.procs: list[tuple[str, subprocess.Popen]] = []
+        self.cmds: dict[str, list[str]] = {}
+        self.restarts: dict[str, int] = {}
+        self.stopping = False
+
+    def forward(self, signum, _frame=None) -> None:
+        self.stopping = True
+        for _, p in self.procs:
+            if p.poll() is None:
+                p.send_signal(signum)
+
+    def _popen(self, label: str, cmd: list[str]) -> subprocess.Popen:
+        if self.logs is None:
+            return subprocess.Popen(cmd, env=self.env, preexec_fn=_hold_stop_signals)
+        with self.logs.open(label) as f:  # the child keeps its own descriptor
+            return subprocess.Popen(cmd, env=self.env, preexec_fn=_hold_stop_signals, stdout=f,
+                                    stderr=subprocess.STDOUT)
+
+    def start_all(self, nodes, extra_ros_args: list[str]) -> None:
+        for proc in processes(nodes):
+            if self.stopping:  # Ctrl-C while starting: start no more
+                break
+            cmd = [str(resolve_executable(proc.exe)), *proc.args, *extra_ros_args]
+            if self.logs is None:
+                print(f"[launch] starting {proc.label}: {' '.join(cmd)}", file=sys.stderr, flush=True)
+            child = self._popen(proc.label, cmd)
+            self.procs.append((proc.label, child))
+            self.cmds[proc.label] = cmd
+            if self.stopping:  # the signal came while this one was starting: it missed the forward
+                child.send_signal(signal.SIGINT)
+
+    def _check_exits(self) -> tuple[str, int] | None:
+        """Respawn the nodes that died (with --respawn, within RESPAWN_MAX); the first one that
+        may not be respawned, as (name, exit code), stops the graph."""
+        for i, (name, p) in enumerate(self.procs):
+            rc = p.poll()
+            if rc is None:
+                continue
+            if not (self.respawn and self.restarts.get(name, 0) < RESPAWN_MAX):
+                return name, rc
+            self.restarts[name] = self.restarts.get(name, 0) + 1
+            print(f"[launch] node '{name}' exited with code {rc}; respawning it "
+                  f"({self.restarts[name]}/{RESPAWN_MAX})", file=sys.stderr, flush=True)
+            self.procs[i] = (name, self._popen(name, self.cmds[name]))
+            if self.stopping:  # Ctrl-C came while it started: forward() saw the dead one
+                self.procs[i][1].send_signal(signal.SIGINT)
+        return None
+
+    def _stop_for(self, failed: tuple[str, int]) -> None:
+        print(f"[launch] node '{failed[0]}' exited with code {failed[1]}; stopping the graph",
+              file=sys.stderr, flush=True)
+        if self.logs is not None:
+            print(f"[launch] the end of its log {self.logs.path(failed[0])}:\n  "
+                  + "\n  ".join(self.logs.tail(failed[0])), file=sys.stderr, flush=True)
+        self.forward(signal.SIGINT)
+
+    def supervise(self, poll: float, stop_timeout: float) -> int:
+        """Until every node has exited (after a stop, or one node's death): the exit code."""
+        failed: tuple[str, int] | None = None
+        stop_deadline: float | None = None
+        escalated: list[str] = []
+        while True:
+            alive = [(name, p) for name, p in self.procs if p.poll() is None]
+            if not self.stopping:
+                failed = self._check_exits()
+                if failed:
+                    self._stop_for(failed)
+            if not alive:
+                break
+            if self.stopping and stop_deadline is None:
+                stop_deadline = time.monotonic() + stop_timeout
+            if stop_deadline is not None and time.monotonic() > stop_deadline:
+                escalated = _escalate(alive)
+                if self.logs is not None:
+                    for name in escalated:
+                        print(f"[launch] {name}'s stacks are in {self.logs.path(name)}", file=sys.stderr, flush=True)
+                break
+            time.sleep(poll)
+        _wait_all(self.procs, timeout=10.0)
+        if failed:
+            return failed[1] if failed[1] > 0 else 1
+        bad = [(n, p.returncode) for n, p in self.procs
+               if n in escalated or p.returncode not in (0, -signal.SIGINT, -signal.SIGTERM)]
+        for n, rc in bad:
+            print(f"[launch] node '{n}' exited with code {rc}", file=sys.stderr)
+        return 1 if bad else 0
 
 
 def _escalate(alive: list[tuple[str, subprocess.Popen]]) -> list[str]:

@@ -36,7 +36,7 @@ from skillgen_ros.core.generation.release import ReleaseConfig
 from skillgen_ros.core.generation.session import RunRequest, run_generation, validate_request
 from skillgen_ros.core import validation as V
 from skillgen_ros.core.skills.augmentation import MAX_TRANSLATION, AugmentationConfig
-from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
+from skillgen_ros.core.skills.bag_demos import SourceDemoCache, expand_bag_paths
 from skillgen_ros.core.tasks import TASK_NAMES, get_task
 from skillgen_ros.core.tasks.spec import MAX_SEED
 from skillgen_ros.nodes import datagen_pool
@@ -60,6 +60,7 @@ class DatagenNode(Node):
         self.declare_parameter("action_noise", 0.05)
         self.declare_parameter("profile", DEFAULT_PROFILE)
         self.declare_parameter("observation_source", "ground_truth")
+        self.declare_parameter("write_report", True)
         for k, v in _RELEASE_PARAMS.items():
             self.declare_parameter(f"release.{k}", v)
         self.declare_parameter("driver_node", "sim_driver")
@@ -92,6 +93,7 @@ class DatagenNode(Node):
                                driver_node=str(self.get_parameter("driver_node").value),
                                observation_source=self._observation_source)
         self._busy = threading.Lock()
+        self._demo_cache = SourceDemoCache()  # goals over the same bags parse them once
         cb = ReentrantCallbackGroup()
         self.rec_start = self.create_client(Recorder, "recorder/start", callback_group=cb)
         self.rec_stop = self.create_client(Recorder, "recorder/stop", callback_group=cb)
@@ -153,7 +155,7 @@ class DatagenNode(Node):
         if not paths:
             raise SkillGenError(f"no source demo bags under {d}", reason="NO_SOURCE_DEMOS")
         self.env.demos_dir = d
-        return load_source_demos(paths, get_task(req.task))
+        return self._demo_cache.load(paths, get_task(req.task))
 
     def _on_goal(self, goal):
         """Busy: reject. An empty task is a readiness probe (skillgen_ros/answered.py): reject, run
@@ -221,7 +223,8 @@ class DatagenNode(Node):
                 run = datagen_pool.run_goal(self, goal_handle, req, self.env.demos_dir)
             else:
                 run = run_generation(self.env, demos, get_task(req.task), req, on_progress=progress,
-                                     should_stop=stop, before_attempt=before_attempt)
+                                     should_stop=stop, before_attempt=before_attempt,
+                                     write_report=bool(self.get_parameter("write_report").value))
             res.reason = run.stopped_early or "OK"
             res.message = f"{run.successes}/{run.attempts} attempts succeeded"
         except SkillGenError as e:  # a request-level failure mid-run: partial dataset stays valid

@@ -99,74 +99,39 @@ class _WriterThread(threading.Thread):
         return self.writer.close()
 
 
+# name -> (default, description): the recorder's parameters (params/recorder.yaml sets them)
+PARAMETERS = {
+    "output": ("", "bag directory; empty: bags/rec_<UTC time>"),
+    "topics": ([""], "topics to record (relative names resolve in the node namespace)"),
+    "all_topics": (False, "record every discovered topic"),
+    "exclude": (["/rosout", "/parameter_events"], "never record"),
+    "include_hidden": (False, "also record hidden (/_x) topics"),
+    "max_bag_size": (0, "split to a new .mcap past this many bytes; 0 never"),
+    "compression": ("lz4", "MCAP chunk compression: lz4 (fast), zstd (smaller, ~4x the CPU), none"),
+    "chunk_size": (1 << 20, "uncompressed bytes per MCAP chunk"),
+    "max_chunk_age": (1.0, "s; close a chunk this old (kill-safety bound)"),
+    "autostart": (True, "start recording at launch"),
+    "discovery_period": (0.5, "s between graph polls"),
+    "queue_depth": (1000, "subscription history depth (absorbs stalls)"),
+    "max_queue_bytes": (1 << 30, "writer backlog cap; beyond it messages drop"),
+    "scene": (False, "also write /tf, /tf_static, /robot_description and /scene/object_markers for Foxglove "
+                     "(docs/foxglove.md)"),
+    "scene_cameras": (["front", "wrist"], "cameras whose pose frames /tf gets"),
+    "throttle": ([""], "'topic=seconds' entries: record at most one message per that many seconds on the topic"),
+    "writable_roots": ([""], "extra directories a recorder/start output may lie under (the working and temp "
+                             "dirs always)"),
+}
+
+
 class Recorder(Node):
     """Raw-CDR recorder with start/stop/pause/resume services."""
 
     def __init__(self):
         super().__init__("recorder")
-        d = ParameterDescriptor
-        self.declare_parameter("output", "", d(description="bag directory; empty: bags/rec_<UTC time>"))
-        self.declare_parameter("topics", [""], d(description="topics to record (relative names resolve "
-                                                             "in the node namespace)"))
-        self.declare_parameter("all_topics", False, d(description="record every discovered topic"))
-        self.declare_parameter("exclude", ["/rosout", "/parameter_events"], d(description="never record"))
-        self.declare_parameter("include_hidden", False, d(description="also record hidden (/_x) topics"))
-        self.declare_parameter("max_bag_size", 0, d(description="split to a new .mcap past this many bytes; 0 never"))
-        self.declare_parameter("compression", "lz4", d(description="MCAP chunk compression: lz4 (fast), zstd "
-                                                                   "(smaller, ~4x the CPU), none"))
-        self.declare_parameter("chunk_size", 1 << 20, d(description="uncompressed bytes per MCAP chunk"))
-        self.declare_parameter("max_chunk_age", 1.0, d(description="s; close a chunk this old (kill-safety bound)"))
-        self.declare_parameter("autostart", True, d(description="start recording at launch"))
-        self.declare_parameter("discovery_period", 0.5, d(description="s between graph polls"))
-        self.declare_parameter("queue_depth", 1000, d(description="subscription history depth (absorbs stalls)"))
-        self.declare_parameter("max_queue_bytes", 1 << 30, d(description="writer backlog cap; beyond it messages drop"))
-        self.declare_parameter("scene", False, d(description="also write /tf, /tf_static, /robot_description and "
-                                                              "/scene/object_markers for Foxglove (docs/foxglove.md)"))
-        self.declare_parameter("scene_cameras", ["front", "wrist"], d(description="cameras whose pose frames /tf gets"))
-        self.declare_parameter("throttle", [""], d(description="'topic=seconds' entries: record at most one "
-                                                               "message per that many seconds on the topic"))
-        self.declare_parameter("writable_roots", [""], d(description="extra directories a recorder/start output may "
-                                                                     "lie under (the working and temp dirs always)"))
-        p = {n: self.get_parameter(n).value for n in (
-            "output", "topics", "all_topics", "exclude", "include_hidden", "max_bag_size", "compression",
-            "chunk_size", "max_chunk_age", "autostart", "discovery_period", "queue_depth", "max_queue_bytes")}
-        try:
-            compression = Compression.parse(p["compression"])
-        except BagError as e:
-            raise ParameterError(str(e)) from None
-        if p["max_bag_size"] < 0 or p["chunk_size"] <= 0 or p["queue_depth"] <= 0:
-            raise ParameterError("max_bag_size >= 0, chunk_size > 0 and queue_depth > 0 are required")
-        try:  # NaN and inf fail these
-            V.finite("discovery_period", p["discovery_period"], 0.0, 3600.0, lo_open=True)
-            V.finite("max_chunk_age", p["max_chunk_age"], 0.0, 3600.0, lo_open=True)
-        except SkillGenError as e:
-            raise ParameterError(str(e.args[0])) from None
-        self._roots = [r for r in self.get_parameter("writable_roots").value if r]
-        if p["output"]:
-            self._roots.append(str(Path(p["output"]).resolve().parent))
-        self._options = WriterOptions(compression=compression, chunk_size=int(p["chunk_size"]),
-                                      max_file_size=int(p["max_bag_size"]),
-                                      max_chunk_age_s=float(p["max_chunk_age"]))
-        self._output = p["output"]
-        self._topics = [self.resolve_topic_name(t) for t in p["topics"] if t]
-        self._all = bool(p["all_topics"])
-        self._exclude = set(p["exclude"])
-        self._hidden = bool(p["include_hidden"])
-        self._depth = int(p["queue_depth"])
-        self._max_queue = int(p["max_queue_bytes"])
-        self._scene = bool(self.get_parameter("scene").value)
-        self._scene_cameras = [c for c in self.get_parameter("scene_cameras").value if c]
-        self._feed = None
-        try:
-            self._throttle = {self.resolve_topic_name(t): ns for t, ns in
-                              _parse_throttle([t for t in self.get_parameter("throttle").value if t]).items()}
-        except SkillGenError:
-            raise
-        except Exception as e:  # noqa: BLE001 -- rclpy's InvalidTopicNameException
-            raise ParameterError(f"throttle: invalid topic name: {e}") from None
-        self._last_ns: dict[str, int] = {}
-        if self._scene:
-            self._exclude |= set(SCENE_TOPICS)  # written by the synthesizer, never twice
+        for name, (default, desc) in PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=desc))
+        p = {n: self.get_parameter(n).value for n in PARAMETERS}
+        self._read_parameters(p)
         self._lock = threading.Lock()
         self._state = State.IDLE
         self._writer: _WriterThread | None = None
@@ -195,6 +160,46 @@ class Recorder(Node):
         except BaseException:
             self._close()
             raise
+
+    def _read_parameters(self, p: dict) -> None:
+        """The parameters, checked (ParameterError names the bad one), as the node's settings."""
+        try:
+            compression = Compression.parse(p["compression"])
+        except BagError as e:
+            raise ParameterError(str(e)) from None
+        if p["max_bag_size"] < 0 or p["chunk_size"] <= 0 or p["queue_depth"] <= 0:
+            raise ParameterError("max_bag_size >= 0, chunk_size > 0 and queue_depth > 0 are required")
+        try:  # NaN and inf fail these
+            V.finite("discovery_period", p["discovery_period"], 0.0, 3600.0, lo_open=True)
+            V.finite("max_chunk_age", p["max_chunk_age"], 0.0, 3600.0, lo_open=True)
+        except SkillGenError as e:
+            raise ParameterError(str(e.args[0])) from None
+        self._roots = [r for r in p["writable_roots"] if r]
+        if p["output"]:
+            self._roots.append(str(Path(p["output"]).resolve().parent))
+        self._options = WriterOptions(compression=compression, chunk_size=int(p["chunk_size"]),
+                                      max_file_size=int(p["max_bag_size"]),
+                                      max_chunk_age_s=float(p["max_chunk_age"]))
+        self._output = p["output"]
+        self._topics = [self.resolve_topic_name(t) for t in p["topics"] if t]
+        self._all = bool(p["all_topics"])
+        self._exclude = set(p["exclude"])
+        self._hidden = bool(p["include_hidden"])
+        self._depth = int(p["queue_depth"])
+        self._max_queue = int(p["max_queue_bytes"])
+        self._scene = bool(p["scene"])
+        self._scene_cameras = [c for c in p["scene_cameras"] if c]
+        self._feed = None
+        try:
+            self._throttle = {self.resolve_topic_name(t): ns for t, ns in
+                              _parse_throttle([t for t in p["throttle"] if t]).items()}
+        except SkillGenError:
+            raise
+        except Exception as e:  # noqa: BLE001 -- rclpy's InvalidTopicNameException
+            raise ParameterError(f"throttle: invalid topic name: {e}") from None
+        self._last_ns: dict[str, int] = {}
+        if self._scene:
+            self._exclude |= set(SCENE_TOPICS)  # written by the synthesizer, never twice
 
     # -- control ----------------------------------------------------------------------------
     def _checked(self, output: str, topics: list[str]) -> list[str]:

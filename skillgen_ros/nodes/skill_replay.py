@@ -43,7 +43,7 @@ from skillgen_ros.core.generation.selection import make_strategy
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
 from skillgen_ros.core.skills.actions import make_action
-from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
+from skillgen_ros.core.skills.bag_demos import SourceDemoCache, expand_bag_paths
 from skillgen_ros.core.skills.replay import plan_replay
 from skillgen_ros.core.skills.transform import matrix_to_array
 from skillgen_ros.core.tasks import get_task
@@ -71,7 +71,7 @@ class SkillReplayNode(Node):
             V.finite("feedback_hz", self.get_parameter("feedback_hz").value, 0.0, 1000.0)  # 0 = every step
         except InvalidInputError as e:
             raise ParameterError(str(e.args[0])) from None
-        self._demos: dict[tuple[str, str], list] = {}
+        self._demos = SourceDemoCache()  # (bag files, task) -> source demos
         self._kin = PandaKinematics()
         self._state: JointState | None = None  # newest joint_states with every arm joint
         self._state_count = 0
@@ -141,13 +141,10 @@ class SkillReplayNode(Node):
 
     def demos_for(self, task: str, directory: str):
         d = directory or str(Path(self.get_parameter("demos_dir").value) / task)
-        key = (task, d)
-        if key not in self._demos:
-            paths = expand_bag_paths([d])
-            if not paths:
-                raise SkillGenError(f"no source demo bags under {d}", reason="NO_SOURCE_DEMOS")
-            self._demos[key] = load_source_demos(paths, get_task(task))
-        return self._demos[key]
+        paths = expand_bag_paths([d])
+        if not paths:
+            raise SkillGenError(f"no source demo bags under {d}", reason="NO_SOURCE_DEMOS")
+        return self._demos.load(paths, get_task(task))  # reloaded when a bag's files change
 
     def _on_load_demos(self, req: LoadDemos.Request, res: LoadDemos.Response) -> LoadDemos.Response:
         try:

@@ -38,6 +38,7 @@ from .ik import IKSolver
 from .kinematics import PandaKinematics
 from .phases import CartesianPathError, cartesian_line
 from .rrt import JointSpaceRRT, RRTStatus
+from .start_repair import StartRepairs
 from .timing import JointTrajectory, time_parameterize
 
 
@@ -89,7 +90,7 @@ def _seed_like(v) -> bool:
     return not isinstance(v, bool) and isinstance(v, (int, np.integer)) and v >= 0
 
 
-class MotionPlanner:
+class MotionPlanner(StartRepairs):
     def __init__(self, kin: PandaKinematics, ik: IKSolver, collision: CollisionModel,
                  retreat_distance: float = 0.05, approach_distance: float = 0.05,
                  dt: float = 0.01, ik_timeout: float = 5.0, ik_iterations: int = 2000,
@@ -176,7 +177,6 @@ class MotionPlanner:
         and a blocked retreat from a start in contact too.
         """
         t_all = time.perf_counter()
-        timings: dict[str, float] = {}
         if seed is not None and (len(seed) != 2 or not all(map(_seed_like, seed))):
             raise InvalidInputError(f"plan seed must be (seed, index), two ints >= 0, got {seed!r}")
         self._reseed_ik_for_call(None if seed is None else (int(seed[0]), int(seed[1])))  # every call takes its index
@@ -189,224 +189,180 @@ class MotionPlanner:
             if mode is Mode.TRANSFER and attached is None:
                 raise InvalidInputError("transfer needs an attached object")
         except (InvalidInputError, ValueError) as e:
-            return PlanResult(PlanStatus.INVALID_REQUEST, message=str(e), timings=timings)
+            return PlanResult(PlanStatus.INVALID_REQUEST, message=str(e), timings={})
         if mode is Mode.TRANSIT:
-            attached = None
             start_objects = tuple(x for x in (released or manipulated, released_support) if x)
-            allow_start = AllowedContacts(hand_object=start_objects or None)
-            allow_goal = AllowedContacts(hand_object=manipulated)
+            c = _Call(self.cm, None, t_all, AllowedContacts(hand_object=start_objects or None),
+                      AllowedContacts(hand_object=manipulated))
         else:
-            allow_start = AllowedContacts(hand_object=start_support, support=start_support)
-            allow_goal = AllowedContacts(hand_object=goal_support, support=goal_support)
-
-        def fail(status, msg):
-            timings["total"] = time.perf_counter() - t_all
-            return PlanResult(status, timings=timings, message=msg)
-
-        def collides(Q, allow=AllowedContacts()):
-            return self.cm.in_collision(Q, attached, allow)
-
-        def edge_free(a, b, allow=AllowedContacts()):
-            return self.cm.check_motion(a, b, attached, allow)
-
-        if not self.kin.within_limits(q0, tol=START_LIMIT_TOL):
-            return fail(PlanStatus.INVALID_REQUEST, "start configuration outside joint limits")
-        q0 = np.clip(q0, self.kin.lower, self.kin.upper)
-        escape, touching, notes = q0[None], (), []
-        if collides(q0[None], allow_start)[0]:
-            if not extras:
-                return fail(PlanStatus.START_IN_COLLISION, "start configuration collides (planner extras off)")
-            touching = self._touching_hand(q0, allow_start, collides)
-            if touching:  # the replayed skill left the hand against a fixture: back out along the retreat
-                allow_start = replace(allow_start, hand_object=allow_start.hand_names() + touching)
-                notes.append(f"start: hand touches {', '.join(touching)} (allowed on the retreat)")
-            else:
-                escape = self._null_space_escape(q0, lambda q: bool(collides(q[None], allow_start)[0]))
-                if escape is None:
-                    return fail(PlanStatus.START_IN_COLLISION, "start configuration collides")
-                notes.append(f"start in collision: moved {np.abs(escape[-1] - q0).max():.2f} rad in the null space")
-                q0 = escape[-1]
-
-        # goal IK: first without collisions (reachability), then filter
+            c = _Call(self.cm, attached, t_all, AllowedContacts(hand_object=start_support, support=start_support),
+                      AllowedContacts(hand_object=goal_support, support=goal_support))
+        try:
+            q0, escape, touching = self._start(c, q0, extras)
+            rounds = self._goal_candidates(c, q0, target.matrix())
+            retreat_path = np.vstack([escape[:-1], self._retreat(c, q0, touching, retreat, extras)])
+            approach_path = self._approach(c, rounds, approach)
+            transit = self._transit(c, mode, retreat_path[-1], approach_path[0], timeout)
+        except _PlanFailure as e:
+            return c.fail(e.status, str(e))
+        path = np.vstack([retreat_path, transit[1:], approach_path[1:]])
+        n_r, n_t = len(retreat_path), len(transit)
+        segments = (("retreat", 0, n_r - 1), (mode.value, n_r - 1, n_r + n_t - 2),
+                    ("approach", n_r + n_t - 2, len(path) - 1))
         t = time.perf_counter()
-        T_goal = target.matrix()
+        traj = time_parameterize(path, self.dt, scale=self.velocity_scale)
+        c.timings["parameterize"] = time.perf_counter() - t
+        c.timings["total"] = time.perf_counter() - t_all
+        retreat_length = float(np.linalg.norm(self.kin.fk(retreat_path[-1])[:3, 3] - self.kin.fk(retreat_path[0])[:3, 3]))
+        return PlanResult(PlanStatus.SUCCESS, traj, path, segments, c.timings,
+                          "; ".join([f"{len(path)} waypoints, {traj.duration:.2f} s"] + c.notes), retreat_length)
+
+    def _start(self, c: "_Call", q0, extras: bool):
+        """The start, clipped onto the joint limits and repaired if it collides (extras):
+        (start, escape path ending at it, the boxes the hand may touch on the retreat)."""
+        if not self.kin.within_limits(q0, tol=START_LIMIT_TOL):
+            raise _PlanFailure(PlanStatus.INVALID_REQUEST, "start configuration outside joint limits")
+        q0 = np.clip(q0, self.kin.lower, self.kin.upper)
+        if not c.collides(q0[None], c.allow_start)[0]:
+            return q0, q0[None], ()
+        if not extras:
+            raise _PlanFailure(PlanStatus.START_IN_COLLISION, "start configuration collides (planner extras off)")
+        touching = self._touching_hand(q0, c.allow_start, c.collides)
+        if touching:  # the replayed skill left the hand against a fixture: back out along the retreat
+            c.allow_start = replace(c.allow_start, hand_object=c.allow_start.hand_names() + touching)
+            c.notes.append(f"start: hand touches {', '.join(touching)} (allowed on the retreat)")
+            return q0, q0[None], touching
+        escape = self._null_space_escape(q0, lambda q: bool(c.collides(q[None], c.allow_start)[0]))
+        if escape is None:
+            raise _PlanFailure(PlanStatus.START_IN_COLLISION, "start configuration collides")
+        c.notes.append(f"start in collision: moved {np.abs(escape[-1] - q0).max():.2f} rad in the null space")
+        return escape[-1], escape, ()
+
+    def _goal_candidates(self, c: "_Call", q0, T_goal):
+        """Goal IK: first without collisions (reachability: IK_FAILED if none), then, in rounds, the
+        collision-free ones and, if none of those admits an approach, a collision-aware IK for more."""
+        t = time.perf_counter()
         ik_res = self.ik.solve(T_goal, seed_q=q0, timeout=self.ik_timeout,
                                max_solutions=self.ik_solutions, max_iterations=self.ik_iterations)
-        timings["ik"] = time.perf_counter() - t
+        c.timings["ik"] = time.perf_counter() - t
         if not ik_res.solutions:
-            return fail(PlanStatus.IK_FAILED, "no IK solution for the target pose")
-        # Candidate goals in rounds: the reachability solutions that are collision-free, then a
-        # collision-aware IK for more (distinct) solutions if none of those admits an approach.
-        checked_ik = IKSolver(self.kin, lambda Q: collides(Q, allow_goal), batch=self.ik.batch,
+            raise _PlanFailure(PlanStatus.IK_FAILED, "no IK solution for the target pose")
+        checked_ik = IKSolver(self.kin, lambda Q: c.collides(Q, c.allow_goal), batch=self.ik.batch,
                               rng=self.ik.rng)
-        rounds = (
-            lambda: [q for q in ik_res.solutions if not collides(q[None], allow_goal)[0]],
+        return (
+            lambda: [q for q in ik_res.solutions if not c.collides(q[None], c.allow_goal)[0]],
             lambda: list(checked_ik.solve(T_goal, seed_q=q0, timeout=2 * self.ik_timeout,
                                           max_solutions=3 * self.ik_solutions,
                                           max_iterations=2 * self.ik_iterations).solutions),
         )
 
-        # retreat
+    def _retreat(self, c: "_Call", q0, touching, retreat: bool, extras: bool) -> np.ndarray:
+        """The retreat from q0 (just q0 when off), shortened or repaired when it collides."""
         t = time.perf_counter()
-        retreat_path = q0[None]
-        if retreat and self.retreat_distance > 0:
-            why = None
+        try:
+            if not (retreat and self.retreat_distance > 0):
+                return q0[None]
             try:
-                retreat_path = cartesian_line(self.kin, self.ik, q0, -self.retreat_distance)
-                if touching and collides(retreat_path[-1:])[0]:  # still against the fixture: back out further
-                    retreat_path = cartesian_line(self.kin, self.ik, q0, -2 * self.retreat_distance, steps=20)
-                if not self._segment_free(retreat_path, edge_free, allow_start):
-                    why = "retreat collides"
+                path = cartesian_line(self.kin, self.ik, q0, -self.retreat_distance)
+                if touching and c.collides(path[-1:])[0]:  # still against the fixture: back out further
+                    path = cartesian_line(self.kin, self.ik, q0, -2 * self.retreat_distance, steps=20)
+                if self._segment_free(path, c.edge_free, c.allow_start):
+                    return path
+                why = "retreat collides"
             except CartesianPathError as e:
                 why = f"retreat: {e}"
-            if why is not None:
-                # A start that is free without any allowed contact can go straight to transit;
-                # one in contact (fingertips at the table after a low grasp) may still get clear
-                # on the part of the line IK can follow (the wrist at its limit loses it later).
-                if not collides(q0[None])[0]:
-                    retreat_path = q0[None]
-                    notes.append(f"{why}; retreat skipped (start is clear)")
-                elif not extras:
-                    return fail(PlanStatus.START_IN_COLLISION, f"{why} (planner extras off)")
-                else:
-                    retreat_path = self._partial_retreat(q0, edge_free, allow_start, collides)
-                    if retreat_path is not None:
-                        notes.append(f"{why}; retreat shortened to where IK held the line")
-                    else:
-                        retreat_path = self._self_motion_retreat(q0, edge_free, allow_start, collides)
-                        if retreat_path is None:
-                            return fail(PlanStatus.START_IN_COLLISION, why)
-                        notes.append(f"{why}; the arm moved in its null space first, then retreated")
-        retreat_path = np.vstack([escape[:-1], retreat_path])
-        timings["retreat"] = time.perf_counter() - t
+            # A start that is free without any allowed contact can go straight to transit; one in
+            # contact (fingertips at the table after a low grasp) may still get clear on the part
+            # of the line IK can follow (the wrist at its limit loses it later).
+            if not c.collides(q0[None])[0]:
+                c.notes.append(f"{why}; retreat skipped (start is clear)")
+                return q0[None]
+            if not extras:
+                raise _PlanFailure(PlanStatus.START_IN_COLLISION, f"{why} (planner extras off)")
+            path = self._partial_retreat(q0, c.edge_free, c.allow_start, c.collides)
+            if path is not None:
+                c.notes.append(f"{why}; retreat shortened to where IK held the line")
+                return path
+            path = self._self_motion_retreat(q0, c.edge_free, c.allow_start, c.collides)
+            if path is None:
+                raise _PlanFailure(PlanStatus.START_IN_COLLISION, why)
+            c.notes.append(f"{why}; the arm moved in its null space first, then retreated")
+            return path
+        finally:
+            c.timings["retreat"] = time.perf_counter() - t
 
-        # approach, computed backwards from each goal candidate until one is clear
+    def _approach(self, c: "_Call", rounds, approach: bool) -> np.ndarray:
+        """The approach, computed backwards from each goal candidate until one is clear."""
         t = time.perf_counter()
-        approach_path, blocked, kinematic, n_goals, tried = None, 0, "", 0, []
-        for next_round in rounds:
-            for qg in next_round():
-                if any(np.abs(qg - q).max() < 1e-3 for q in tried):
-                    continue
-                tried.append(qg)
-                n_goals += 1
-                if approach and self.approach_distance > 0:
-                    try:
-                        path = cartesian_line(self.kin, self.ik, qg, -self.approach_distance)[::-1]
-                    except CartesianPathError as e:
-                        kinematic = f"approach: {e}"
+        blocked, kinematic, tried = 0, "", []
+        try:
+            for next_round in rounds:
+                for qg in next_round():
+                    if any(np.abs(qg - q).max() < 1e-3 for q in tried):
                         continue
-                else:
-                    path = qg[None]
-                if collides(path[:1])[0] or not self._segment_free(path, edge_free, allow_goal):
-                    blocked += 1
-                    continue
-                approach_path = path
-                break
-            if approach_path is not None:
-                break
-        timings["approach"] = time.perf_counter() - t
-        if approach_path is None:
-            if n_goals == 0:
-                return fail(PlanStatus.GOAL_IN_COLLISION, "every IK solution for the target collides")
-            if blocked:
-                return fail(PlanStatus.GOAL_IN_COLLISION, f"approach blocked for {blocked} of "
-                            f"{n_goals} collision-free goal IK solutions")
-            return fail(PlanStatus.IK_FAILED, f"no goal IK solution admits the straight approach "
-                        f"({kinematic})")
+                    tried.append(qg)
+                    if approach and self.approach_distance > 0:
+                        try:
+                            path = cartesian_line(self.kin, self.ik, qg, -self.approach_distance)[::-1]
+                        except CartesianPathError as e:
+                            kinematic = f"approach: {e}"
+                            continue
+                    else:
+                        path = qg[None]
+                    if c.collides(path[:1])[0] or not self._segment_free(path, c.edge_free, c.allow_goal):
+                        blocked += 1
+                        continue
+                    return path
+        finally:
+            c.timings["approach"] = time.perf_counter() - t
+        if not tried:
+            raise _PlanFailure(PlanStatus.GOAL_IN_COLLISION, "every IK solution for the target collides")
+        if blocked:
+            raise _PlanFailure(PlanStatus.GOAL_IN_COLLISION, f"approach blocked for {blocked} of "
+                               f"{len(tried)} collision-free goal IK solutions")
+        raise _PlanFailure(PlanStatus.IK_FAILED, f"no goal IK solution admits the straight approach ({kinematic})")
 
-        # transit / transfer
+    def _transit(self, c: "_Call", mode: Mode, q_a, q_b, timeout: float) -> np.ndarray:
+        """RRT-Connect from the retreat's end to the approach's start, in what is left of the timeout."""
+        if c.collides(q_a[None])[0]:
+            raise _PlanFailure(PlanStatus.START_IN_COLLISION, "the retreat ends in collision")
         t = time.perf_counter()
-        q_a, q_b = retreat_path[-1], approach_path[0]
-        if collides(q_a[None])[0]:
-            return fail(PlanStatus.START_IN_COLLISION, "the retreat ends in collision")
-        remaining = max(1e-3, timeout - (time.perf_counter() - t_all))
-        res = self.rrt.plan(q_a, q_b, collides, edge_free, remaining, seed=self._rrt_seed,
+        remaining = max(1e-3, timeout - (t - c.t_all))
+        res = self.rrt.plan(q_a, q_b, c.collides, c.edge_free, remaining, seed=self._rrt_seed,
                             max_iterations=self.rrt_iterations)
-        timings[mode.value] = time.perf_counter() - t
+        c.timings[mode.value] = time.perf_counter() - t
         if res.status is not RRTStatus.SOLVED:
             cut = (f"its {self.rrt_iterations} iterations" if res.iterations > self.rrt_iterations
                    else f"the {remaining:.2f} s left of the timeout")
-            return fail(PlanStatus.PLAN_TIMEOUT, f"{mode.value}: no path within {cut}")
+            raise _PlanFailure(PlanStatus.PLAN_TIMEOUT, f"{mode.value}: no path within {cut}")
+        return res.path
 
-        path = np.vstack([retreat_path, res.path[1:], approach_path[1:]])
-        n_r, n_t = len(retreat_path), len(res.path)
-        segments = (("retreat", 0, n_r - 1), (mode.value, n_r - 1, n_r + n_t - 2),
-                    ("approach", n_r + n_t - 2, len(path) - 1))
-        t = time.perf_counter()
-        traj = time_parameterize(path, self.dt, scale=self.velocity_scale)
-        timings["parameterize"] = time.perf_counter() - t
-        timings["total"] = time.perf_counter() - t_all
-        retreat_length = float(np.linalg.norm(self.kin.fk(retreat_path[-1])[:3, 3] - self.kin.fk(retreat_path[0])[:3, 3]))
-        return PlanResult(PlanStatus.SUCCESS, traj, path, segments, timings,
-                          "; ".join([f"{len(path)} waypoints, {traj.duration:.2f} s"] + notes), retreat_length)
 
-    def _touching_hand(self, q0, allow, collides) -> tuple[str, ...]:
-        """Scene boxes whose contact with the hand alone makes the start collide (empty if allowing
-        every hand contact would still leave it colliding: then the arm or the held object hits)."""
-        names = tuple(dict.fromkeys(b.name for b in self.cm.boxes if b.name not in allow.hand_names()))
-        if not names or collides(q0[None], replace(allow, hand_object=allow.hand_names() + names))[0]:
-            return ()
-        return tuple(n for n in names
-                     if collides(q0[None], replace(allow, hand_object=allow.hand_names() + tuple(m for m in names if m != n)))[0])
+class _PlanFailure(Exception):
+    """A phase of plan() failed: plan() answers PlanResult(status) with the message."""
 
-    def _null_space_escape(self, q0, blocked, step: float = 0.02, reach: float = 0.5) -> np.ndarray | None:
-        """A start in collision (the elbow grazing an obstacle after a replayed skill, inside the
-        spheres' padding) moved along the arm's self-motion, which keeps the hand -- and what it
-        holds -- where it is, until `blocked(q)` is false (clear). MoveIt's FixStartStateCollision
-        jiggles the joints at random instead; that would drag a grasped object. Returns the path
-        (q0 first) or None."""
-        T0 = self.kin.fk(q0)
-        best = None
-        for sign in (1.0, -1.0):
-            path, q, prev = [q0], q0, None
-            for _ in range(int(2 * reach / step)):  # a step blocked at a joint limit makes no progress
-                J = self.kin.jacobian(q)
-                n = np.linalg.svd(J)[2][-1]  # the 7-DOF arm's one null-space direction
-                n = n * (sign if prev is None else np.sign(n @ prev) or 1.0)
-                prev = n
-                q = self.ik.solve_local(T0, q + step * n / np.abs(n).max())
-                if q is None or not self.kin.within_limits(q) or np.abs(q - q0).max() > reach:
-                    break
-                path.append(q)
-                if not blocked(q):
-                    if best is None or len(path) < len(best):
-                        best = path
-                    break
-        return None if best is None else np.array(best)
+    def __init__(self, status: PlanStatus, message: str):
+        super().__init__(message)
+        self.status = status
 
-    def _self_motion_retreat(self, q0, edge_free, allow, collides) -> np.ndarray | None:
-        """Where IK loses the retreat line at once (the wrist at its joint limit after a low grasp)
-        and the start is in contact, move along the self-motion -- hand and held object stay put --
-        until the whole line is followable and clear, then retreat from there."""
-        lines: dict[bytes, np.ndarray] = {}
 
-        def line_blocked(q) -> bool:
-            try:
-                line = cartesian_line(self.kin, self.ik, q, -self.retreat_distance)
-            except CartesianPathError:
-                return True
-            if not self._ends_clear(line, edge_free, allow, collides):
-                return True
-            lines[q.tobytes()] = line
-            return False
+class _Call:
+    """One plan() call: what the hand and held object may touch at the start and at the goal, the
+    attached object every check carries, and the timings and notes gathered so far."""
 
-        escape = self._null_space_escape(q0, line_blocked)
-        if escape is None or not self._segment_free(escape, edge_free, allow):
-            return None
-        return np.vstack([escape[:-1], lines[escape[-1].tobytes()]])
+    def __init__(self, cm: CollisionModel, attached: AttachedObject | None, t_all: float,
+                 allow_start: AllowedContacts, allow_goal: AllowedContacts):
+        self.cm, self.attached, self.t_all = cm, attached, t_all
+        self.allow_start, self.allow_goal = allow_start, allow_goal
+        self.timings: dict[str, float] = {}
+        self.notes: list[str] = []
 
-    @staticmethod
-    def _segment_free(path: np.ndarray, edge_free, allow) -> bool:
-        return all(edge_free(a, b, allow) for a, b in zip(path[:-1], path[1:]))
+    def collides(self, Q, allow: AllowedContacts = AllowedContacts()):
+        return self.cm.in_collision(Q, self.attached, allow)
 
-    def _ends_clear(self, path: np.ndarray, edge_free, allow, collides) -> bool:
-        """A retreat that may pass through the start's allowed contacts but ends free of all."""
-        return not collides(path[-1:])[0] and self._segment_free(path, edge_free, allow)
+    def edge_free(self, a, b, allow: AllowedContacts = AllowedContacts()):
+        return self.cm.check_motion(a, b, self.attached, allow)
 
-    def _partial_retreat(self, q0, edge_free, allow, collides) -> np.ndarray | None:
-        """The retreat line as far as IK follows it, if that ends clear of every contact."""
-        try:
-            path = cartesian_line(self.kin, self.ik, q0, -self.retreat_distance, partial=True)
-        except CartesianPathError:
-            return None
-        return path if len(path) >= 2 and self._ends_clear(path, edge_free, allow, collides) else None
+    def fail(self, status: PlanStatus, message: str) -> PlanResult:
+        self.timings["total"] = time.perf_counter() - self.t_all
+        return PlanResult(status, timings=self.timings, message=message)

@@ -9,8 +9,9 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export AMENT_PREFIX_PATH="$ROOT/.venv${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
 export PYTHONUNBUFFERED=1 MPLBACKEND=Agg
 # test_hsp_graph.py runs in a pytest process of its own: after the rest of the suite in the same
-# process its deploy graph's driver stops taking osc_target for 10 s+ after an executed trajectory
-# (never when the module runs alone; an open defect, see docs/hsp.md "Known problems").
+# process its deploy graph's driver took no osc_target for 10 s+ after an executed trajectory (never
+# when the module ran alone). Fixed by best-effort readers on the lockstep loop (docs/hsp.md "Known
+# problems"); this stays until more single-process runs have confirmed it.
 ISOLATED=test/test_hsp_graph.py
 PY="$ROOT/.venv/bin/python"
 selects() {  # the arguments select a test there, or collecting fails (the real run then shows why)

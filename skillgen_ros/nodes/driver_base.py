@@ -77,6 +77,10 @@ PARAMS = {  # name: (default, description)
     "history_periods": (12000, "control periods kept for state_history (12000: 10 min at 20 Hz)"),
 }
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+# osc_target is read best effort (it matches reliable publishers too): a lockstep client resends a
+# target it got no state for (graph_calls.RESEND_AFTER_S), and a reliable reader holds every later
+# sample back until a lost one is repaired, which stalled a deploy graph 10 s (docs/hsp.md).
+COMMANDS = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
@@ -139,7 +143,7 @@ class DriverNode(DriverActions, Node):
         self.pub_clock = pub(Clock, "/clock", RELIABLE) if self.mode == "lockstep" else None
         self.cameras = DriverCameras([c for c in self.param("cameras") if c], self.frame, self.hz,
                                      self.param("camera_hz"), pub)
-        self.create_subscription(OscTarget, "osc_target", self._on_target, RELIABLE,
+        self.create_subscription(OscTarget, "osc_target", self._on_target, COMMANDS,
                                  callback_group=MutuallyExclusiveCallbackGroup(),
                                  event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
         self.create_service(ResetScene, "reset_scene", self._on_reset, callback_group=cb)

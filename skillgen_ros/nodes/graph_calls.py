@@ -104,13 +104,13 @@ class GraphCalls:
         """Publish the osc_target `msg` and take the driver's next joint_states: after the `count`-th
         message and not stamped as `snap`, the newest state taken before sending.
 
-        In full test runs a lockstep driver sometimes neither stepped nor answered within 10 s of
-        the first osc_target after an executed trajectory (test_hsp_graph on CI; the driver's stack
-        idle in its executor's wait, no warning logged, so either the target or the state it
-        published did not arrive). A target the driver has not applied is harmless to resend and
-        one it has applied must not be applied twice, so after each quiet RESEND_AFTER_S this sends
-        the same message again (same header stamp): the driver applies a stamp once and answers a
-        repeat with that period's state again (driver_base._on_target)."""
+        Both ends read these topics best effort (driver_base.COMMANDS, graph_env's joint_states):
+        a lost message is not repaired by DDS, so this resends. A target the driver has not applied
+        is harmless to resend and one it has applied must not be applied twice, so after each quiet
+        RESEND_AFTER_S this sends the same message again (same header stamp): the driver applies a
+        stamp once and answers a repeat with that period's state again (driver_base._on_target).
+        With reliable readers, one lost sample held every later one back (in-order delivery) until
+        DDS repaired it, 10 s later: the deploy graph stall of docs/hsp.md "Known problems"."""
         before = ns(snap.header.stamp) if snap is not None else -1
         end, sent = time.monotonic() + float(self.t["state"]), 0
         while True:

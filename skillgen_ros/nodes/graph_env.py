@@ -86,7 +86,9 @@ class RosGraphEnv(GraphCalls):
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.task_pub = node.create_publisher(String, "perception/set_task", latched)
         self._q, self._fingers = np.zeros(7), np.zeros(2)
-        self._joints = LatestMessage(node, JointState, "joint_states")
+        # best effort, as the driver reads osc_target (driver_base.COMMANDS): a lost state costs one resend
+        self._joints = LatestMessage(node, JointState, "joint_states",
+                                     QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
         self._wrench = LatestMessage(node, convert.WrenchStamped, "ee_wrench")
         self.kin = PandaKinematics()
         self.task, self._task_sent = "", ""

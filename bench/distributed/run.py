@@ -60,15 +60,20 @@ def _cpu_jiffies() -> tuple[int, int]:
     return sum(f) - idle, sum(f)
 
 
-def scaling_cell(a, mode: str, workers: int) -> dict:
+def _pool(a, mode: str, workers: int, prefix: str):
+    """(temp dir, the request writing under it, a pool of `workers` in `mode`) for one cell."""
     from skillgen_ros.core.distributed.ray_pool import RayPool
 
-    tmp = tempfile.mkdtemp(prefix="bench_distributed_")
+    tmp = tempfile.mkdtemp(prefix=prefix)
     req = _request(a, os.path.join(tmp, "run"))
     spec = WorkerSpec(mode=mode, perception=a.perception, domain_ids=tuple(range(*a.domains)),
                       startup_timeout=300.0)
+    return tmp, req, RayPool(workers, spec, req, pack_dir(req.source_demos))
+
+
+def scaling_cell(a, mode: str, workers: int) -> dict:
     t_up = time.perf_counter()
-    pool = RayPool(workers, spec, req, pack_dir(req.source_demos))
+    tmp, req, pool = _pool(a, mode, workers, "bench_distributed_")
     up = time.perf_counter() - t_up
     try:
         # One warm-up attempt per worker, as benchmarks warm up: a worker's first range pays for
@@ -102,13 +107,7 @@ def scaling_cell(a, mode: str, workers: int) -> dict:
 def cancel_cell(a, mode: str, workers: int = 2) -> dict:
     """The issue's "cancel stops all workers within one attempt's time": stop a run once a sixth of
     its attempts are done and time it from the stop to the last worker's range coming back."""
-    from skillgen_ros.core.distributed.ray_pool import RayPool
-
-    tmp = tempfile.mkdtemp(prefix="bench_cancel_")
-    req = _request(a, os.path.join(tmp, "run"))
-    spec = WorkerSpec(mode=mode, perception=a.perception, domain_ids=tuple(range(*a.domains)),
-                      startup_timeout=300.0)
-    pool = RayPool(workers, spec, req, pack_dir(req.source_demos))
+    tmp, req, pool = _pool(a, mode, workers, "bench_cancel_")
     stop = {}
 
     def progress(p, _st):

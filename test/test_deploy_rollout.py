@@ -14,6 +14,7 @@ from skillgen_ros.core.deploy.loading import check_policy
 from skillgen_ros.core.deploy.rollout import policy_target
 from skillgen_ros.core.deploy.seeds import HELD_OUT_BIT, is_held_out
 from skillgen_ros.core.errors import InvalidInputError, SkillGenError
+from skillgen_ros.core.generation.grasp import CLOSE_PERIODS
 from skillgen_ros.core.generation.seeds import scene_seed
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.skills.actions import pose_to_delta_action
@@ -216,10 +217,18 @@ def test_tamp_goal_checks_on_true_poses():
     handle_ee = np.array([0.48 + 0.05, -0.1, TABLE_Z + 0.08, 1, 0, 0, 0])
     ring = nut.keypoint("ring_center")
     seated = Pose(peg_pose.position + [-ring[0], -ring[1], -peg.half_extents[2] + 0.02], [0, 0, 0, 1])
+    at_handle = np.array([0.48 + 0.05, -0.1, TABLE_Z + nut.half_extents[2], 1, 0, 0, 0])
+    on_table = {"square_nut": resting, "square_peg": peg_pose}
+    # grasped: commanded closed, fingers stopped on the nut; no lift needed (the skill data ends before it)
+    assert skill_goal_reached(task, grasp, on_table, at_handle, 0.02, 1.0, None, 0.0)
     assert skill_goal_reached(task, grasp, {"square_nut": lifted, "square_peg": peg_pose}, handle_ee, 0.02, 1.0)
-    assert not skill_goal_reached(task, grasp, {"square_nut": resting, "square_peg": peg_pose}, handle_ee, 0.02, 1.0)
-    assert not skill_goal_reached(task, grasp, {"square_nut": lifted, "square_peg": peg_pose}, handle_ee, 0.0, 1.0)
-    assert not skill_goal_reached(task, grasp, {"square_nut": lifted, "square_peg": peg_pose}, handle_ee, 0.02, -1.0)
+    assert not skill_goal_reached(task, grasp, on_table, at_handle, 0.03, 1.0, None, -0.004)  # still closing
+    assert not skill_goal_reached(task, grasp, on_table, at_handle, 0.02, 1.0, None, np.inf)  # no earlier width
+    assert not skill_goal_reached(task, grasp, on_table, at_handle, 0.02, 1.0, None, 0.0, CLOSE_PERIODS - 1)
+    assert not skill_goal_reached(task, grasp, on_table, at_handle, 0.0, 1.0)  # shut on air
+    assert not skill_goal_reached(task, grasp, on_table, at_handle, 0.02, -1.0)  # commanded open
+    far_ee = np.array([0.48, -0.1 + 0.4, TABLE_Z + 0.08, 1, 0, 0, 0])
+    assert not skill_goal_reached(task, grasp, on_table, far_ee, 0.02, 1.0)  # the nut is not at the hand
     poses = {"square_nut": seated, "square_peg": peg_pose}
     away = np.array([*(peg_pose.position + [0, 0, 0.2]), 1, 0, 0, 0])  # the hand let go and rose
     assert task.is_success(SceneState(poses, away[:3], -1.0))

@@ -121,6 +121,8 @@ class _Rollout:
         self.chosen: int | None = None
         self.succeeded = False
         self.gripper = -1.0
+        self.width: float | None = None
+        self.closed_steps = 0  # policy steps the hand has been commanded closed without a break
         self.policy_s, self.policy_n = 0.0, 0
         self.obs = None
 
@@ -183,8 +185,10 @@ class _Rollout:
             self.policy_s += time.perf_counter() - t
             return fired
         width = float(np.sum(self.obs.gripper))
+        change = width - self.width if self.width is not None else np.inf  # a skill's first step: not known yet
+        self.width = width
         return skill_goal_reached(self.task, skill, self.truth(), self.obs.ee_pose, width, self.gripper,
-                                  self.obs.object_joints)
+                                  self.obs.object_joints, change, self.closed_steps)
 
     def truth(self) -> dict:
         try:
@@ -194,6 +198,7 @@ class _Rollout:
 
     def run_policy(self, skill) -> tuple[int, str]:
         self.policy.start_skill(skill.index)
+        self.width = None  # the finger width at the previous goal check (tamp)
         for n in range(self.cfg.skill_max_steps):
             od = self.ask(self.obs_fn, self.obs)
             if self.done_by_goal(skill, od):
@@ -218,6 +223,7 @@ class _Rollout:
             raise _Fail(DeployReason.CONTROL_FAILED, f"control step failed: {e}") from e
         self.steps += 1
         self.gripper = g
+        self.closed_steps = self.closed_steps + 1 if g > 0 else 0
         self._record(obs)
         self.succeeded = bool(self.env.task_success())
         return self.succeeded

@@ -25,6 +25,8 @@ Datasets and checkpoints live under --work (out/bench_hsp, not in git).
     .venv/bin/python bench/hsp/run.py --cells Square/D1 --budget-minutes 75 --out bench/results/hsp_budget3x.json
     # the data-scaling row: Square D2, HSP-Class, 200 demos
     .venv/bin/python bench/hsp/run.py --cells Square/D2 --methods HSP-Class --demos 200 --out bench/results/hsp_200demos.json
+    # after a fix in deployment: evaluate the kept checkpoints again (the training records stay)
+    .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods HSP-TAMP --reevaluate "TAMP goal fix"
     # smoke (seconds of training, 2 rollouts)
     .venv/bin/python bench/hsp/run.py --cells Square/D0 --demos 3 --rollouts 2 --chunk-steps 5 --budget-steps 10 \
         --hidden 32 --mlp-hidden 32 --work /tmp/bench_hsp_smoke --out /tmp/bench_hsp_smoke/hsp.json
@@ -34,6 +36,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import shutil
 import sys
 import time
@@ -65,8 +68,13 @@ class Store:
     def __init__(self, path: Path, args):
         self.path = path
         self.data = json.loads(path.read_text()) if path.exists() else {}
-        self.data["machine"] = machine_info()
-        self.data["protocol"] = {k: v for k, v in vars(args).items() if k not in ("cells", "methods")}
+        if args.reevaluate and self.data.get("protocol"):  # the training run's protocol and machine stay
+            self.data.setdefault("reevaluations", []).append(
+                {"reason": args.reevaluate, "cells": args.cells, "methods": args.methods, "machine": machine_info(),
+                 "command": shlex.join([".venv/bin/python", "bench/hsp/run.py", *sys.argv[1:]])})
+        else:
+            self.data["machine"] = machine_info()
+            self.data["protocol"] = {k: v for k, v in vars(args).items() if k not in ("cells", "methods", "reevaluate")}
         self.data.setdefault("cells", {})
 
     def cell(self, name: str) -> dict:
@@ -150,7 +158,8 @@ def evaluate_methods(store: Store, cell: str, network: str, ckpt: Path, step: in
         mrec["evals"].append(rec)
         if "best" not in mrec or rec["success_rate"] > mrec["best"]["success_rate"]:
             mrec["best"] = rec
-            shutil.copyfile(ckpt, ckpt.parent / f"best_{m}.pt")
+            if ckpt.resolve() != (ckpt.parent / f"best_{m}.pt").resolve():
+                shutil.copyfile(ckpt, ckpt.parent / f"best_{m}.pt")
         print(f"  {cell} {m} @ step {step}: {s.line()}", flush=True)
         store.save()
 
@@ -175,7 +184,52 @@ def train_network(store: Store, cell: str, network: str, dataset: str, methods, 
         rec["steps"], rec["finished"] = int(r.config.step), bool(r.finished or r.config.step >= a.budget_steps)
         rec["ms_per_train_step"] = 1000 * rec["train_seconds"] / max(1, rec["steps"])
         store.save()
-        evaluate_methods(store, cell, network, Path(r.last_path), int(r.config.step), methods, a)
+        kept = out / f"step_{int(r.config.step):06d}.pt"  # every chunk's checkpoint stays: --reevaluate reads them
+        shutil.copyfile(r.last_path, kept)
+        evaluate_methods(store, cell, network, kept, int(r.config.step), methods, a)
+
+
+def kept_checkpoints(net_dir: Path, max_step: int) -> dict[int, Path]:
+    """The network's checkpoints on disk by training step (step_*.pt, best_*.pt, last.pt), up to max_step:
+    a longer run that resumed in the same --work (the 3x budget) leaves later ones beside them."""
+    from skillgen_ros.core.learning.checkpoint import read_checkpoint
+
+    found: dict[int, Path] = {}
+    for f in sorted(net_dir.glob("step_*.pt")) + sorted(net_dir.glob("best_*.pt")) + [net_dir / "last.pt"]:
+        if f.exists():
+            step = int(read_checkpoint(f)[0].step)
+            if step <= max_step:
+                found.setdefault(step, f)
+    return dict(sorted(found.items()))
+
+
+def reevaluate_cell(store: Store, cell: str, a) -> None:
+    """Evaluate the kept checkpoints again with the current deploy code (after a fix in it): the selected
+    methods' evals and best are replaced; the training records stay."""
+    c = store.cell(cell)
+    methods = [m for m in a.methods if m in METHODS]
+    for network in ("hsp", "bc"):
+        mine = [m for m in methods if NETWORK[m] == network]
+        nrec = c["networks"].get(network)
+        if not mine or not nrec:
+            continue
+        net_dir = Path(a.work) / cell.replace("/", "_") / f"net_{network}_{a.demos}"
+        ckpts = kept_checkpoints(net_dir, int(nrec["steps"]))
+        if not ckpts:
+            print(f"  {cell} {network}: no kept checkpoint in {net_dir}", flush=True)
+            continue
+        for m in mine:
+            old = c["methods"].pop(m, None)
+            c["methods"][m] = {"evals": [], "paper": PAPER.get(cell, {}).get(m),
+                               "reevaluated": {"reason": a.reevaluate, "steps": sorted(ckpts),
+                                               "replaced_evals": (old or {}).get("evals", [])}}
+        for step, path in ckpts.items():
+            tmp = net_dir / f"reeval_{step:06d}.pt"  # best_* copies are rewritten while we read
+            shutil.copyfile(path, tmp)
+            evaluate_methods(store, cell, network, tmp, step, mine, a)
+            tmp.unlink()
+    c["table"] = {m: c["methods"][m]["best"] for m in METHODS if "best" in c["methods"].get(m, {})}
+    store.save()
 
 
 def run_cell(store: Store, cell: str, a) -> None:
@@ -222,6 +276,8 @@ def main(argv=None) -> int:
     p.add_argument("--max-attempts-factor", type=int, default=5)
     p.add_argument("--work", default="out/bench_hsp", help="datasets and checkpoints (not in git)")
     p.add_argument("--out", default=str(ROOT / "bench" / "results" / "hsp.json"))
+    p.add_argument("--reevaluate", metavar="REASON", default="",
+                   help="evaluate the kept checkpoints of the cells' methods again (after a deploy fix; REASON is recorded)")
     a = p.parse_args(argv)
     from skillgen_ros.core.tasks import TASK_NAMES
 
@@ -233,7 +289,7 @@ def main(argv=None) -> int:
     store = Store(Path(a.out), a)
     for cell in a.cells:
         print(f"== {cell}", flush=True)
-        run_cell(store, cell, a)
+        (reevaluate_cell if a.reevaluate else run_cell)(store, cell, a)
         store.data["summary"] = summary(store)
         store.save()
     print(json.dumps(store.data["summary"], indent=2))

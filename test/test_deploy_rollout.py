@@ -9,6 +9,7 @@ import pytest
 from _generation_fakes import FakeTask, FakeWorld, make_source_demos
 
 from skillgen_ros.core.deploy import DeployConfig, DeployReason, rollout_seed, run_rollout
+from skillgen_ros.core.deploy.evaluate import summarize
 from skillgen_ros.core.deploy.goals import skill_goal_reached
 from skillgen_ros.core.deploy.loading import check_policy
 from skillgen_ros.core.deploy.rollout import policy_target
@@ -127,6 +128,10 @@ def test_a_skill_out_of_budget_goes_on_to_the_next_and_the_rollout_reports_polic
     assert res.reason is DeployReason.POLICY_TIMEOUT, res.message
     assert [s.ended for s in res.skills] == ["budget", "budget"] and [s.policy_steps for s in res.skills] == [5, 5]
     assert "termination" not in {s for _, s, _ in stages}
+    ok, _ = _run()
+    summary = summarize("pick_place", "D0", "class", [res, ok])
+    assert summary.to_json()["skill_endings"] == {"0": {"budget": 1, "termination": 1},
+                                                  "1": {"budget": 1, "task_success": 1}}
 
 
 def test_rollout_step_budget():

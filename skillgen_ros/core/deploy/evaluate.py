@@ -48,7 +48,16 @@ class EvalSummary:
                 "successes": self.successes, "success_rate": self.success_rate,
                 "wilson_95": [self.wilson_low, self.wilson_high], "failures": dict(self.failures),
                 "mean_steps": self.mean_steps, "inference_ms_per_step": self.inference_ms_per_step,
-                "reset_seeds": [r.reset_seed for r in self.results]}
+                "skill_endings": self.skill_endings(), "reset_seeds": [r.reset_seed for r in self.results]}
+
+    def skill_endings(self) -> dict:
+        """Per skill index, how its policy phase ended (termination, goal, budget, task_success, failed):
+        a T that never fires shows as "budget"."""
+        out: dict[str, Counter] = {}
+        for r in self.results:
+            for s in r.skills:
+                out.setdefault(str(s.skill_index), Counter())[s.ended] += 1
+        return {k: dict(sorted(v.items())) for k, v in sorted(out.items())}
 
 
 def summarize(task: str, variant: str, mode: str, results: Sequence[RolloutResult]) -> EvalSummary:

@@ -50,6 +50,13 @@ def test_round_trip_gives_the_same_networks_and_config(ckpt, tmp_path):
         np.testing.assert_array_equal(a, b)
     assert acts[0][0].shape == (7,) and np.all(np.abs(acts[0][0]) <= 1)
     assert p.initiation_source_demo(o) == q.initiation_source_demo(o)
+    assert cfg.train.reg_target == "nominal"
+    # a checkpoint written before train.reg_target existed trained I on the stored labels
+    from skillgen_ros.core.learning.config import HSPConfig
+
+    old = cfg.to_json()
+    del old["train"]["reg_target"]
+    assert HSPConfig.from_json(old).train.reg_target == "initiation_target"
 
 
 def test_missing_heads_and_bad_observations_are_clear(ckpt):

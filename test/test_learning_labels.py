@@ -89,3 +89,29 @@ def test_windows_stay_inside_skill_segments_and_pad_at_the_end():
     np.testing.assert_array_equal(ts.init_idx, [0, 5, 6])
     np.testing.assert_array_equal(ts.init_cls, [4, 4, 4])
     np.testing.assert_allclose(ts.obs["a"][:, 0], (np.arange(11) - 5) / (d.obs["a"].std() + 1e-3), rtol=1e-6)
+
+
+def test_reg_target_is_the_initiation_before_augmentation_s_perturbation():
+    """HSP-Reg's nominal target: where the recovery segment of an augmented skill ends (the EE pose at
+    the skill's first non-augmented step); the stored, perturbed label on request or without recovery."""
+    from skillgen_ros.core.errors import ParameterError
+    from skillgen_ros.core.learning.data import reg_target
+
+    mp = np.array([1, 1, 1, 0, 0, 0, 0, 1, 1, 0, 0], np.uint8)
+    aug = np.array([0, 0, 0, 1, 1, 0, 0, 0, 0, 0, 0], np.uint8)  # skill 0 starts with 2 recovery steps
+    n = len(mp)
+    pos = np.arange(n, dtype=float)[:, None] * [1.0, 0.0, 0.0]
+    quat = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
+    label = np.tile([9.0, 9.0, 9.0, 0, 0, 0, 1.0], (n, 1))
+    d = DemoArrays({"robot0_eef_pos": pos, "robot0_eef_quat": quat}, np.zeros((n, 7), np.float32), mp,
+                   np.zeros(n, int), label, aug)
+    np.testing.assert_allclose(reg_target(d, 0), [5.0, 0, 0, 0, 0, 0, 1])  # step 5: the recovery's end
+    np.testing.assert_allclose(reg_target(d, 0, "initiation_target"), label[0])
+    np.testing.assert_allclose(reg_target(d, 7), label[7])  # skill 1 was not augmented: the label is nominal
+    no_labels = DemoArrays(d.obs, d.actions, mp, d.source_demo, label, None)  # a dataset without labels/augmented
+    np.testing.assert_allclose(reg_target(no_labels, 0), label[0])
+    with pytest.raises(ParameterError):
+        reg_target(d, 0, "perturbed")
+    stats = ObsStats.fit({k: v for k, v in d.obs.items()})
+    ts = TrainingSet([d], ["robot0_eef_pos", "robot0_eef_quat"], [], stats, 4, False, 5, None)
+    np.testing.assert_allclose(ts.init_tgt[0, :3], [5.0, 0, 0])  # unnormalized here (no MinMax)

@@ -45,6 +45,9 @@ def _parser() -> argparse.ArgumentParser:
     reg = p.add_mutually_exclusive_group()
     reg.add_argument("--reg", dest="reg", action="store_true", default=None, help="train HSP-Reg's I")
     reg.add_argument("--no-reg", dest="reg", action="store_false", help="never train HSP-Reg's I")
+    p.add_argument("--reg-target", choices=["nominal", "initiation_target"], default=t.reg_target,
+                   help="HSP-Reg's target: the initiation before augmentation's perturbation (nominal) or the "
+                        "stored, perturbed label")
     p.add_argument("--stop-after", type=int, default=0, help="stop (as Ctrl-C) after N steps of this invocation")
     p.add_argument("--no-progress", action="store_true")
     return p
@@ -58,7 +61,7 @@ def main(argv: list[str]) -> int:
     net = NetworkConfig(rnn_hidden=a.hidden, rnn_layers=a.rnn_layers, mlp_hidden=tuple(a.mlp_hidden))
     tc = TrainConfig(lr=a.lr, batch_size=a.batch_size, epochs=a.epochs, steps_per_epoch=a.steps_per_epoch,
                      valid_ratio=a.valid_ratio, seed=a.seed, eval_every=a.eval_every, eval_rollouts=a.eval_rollouts,
-                     device=a.device, threads=a.threads)
+                     device=a.device, threads=a.threads, reg_target=a.reg_target)
     req = TrainRequest(dataset=a.dataset, output_dir=a.output, network=net, train=tc, images=a.images,
                        demos_dir=a.demos_dir, all_steps=a.all_steps, reg=a.reg, resume=a.resume,
                        stop_after=a.stop_after,

@@ -55,10 +55,13 @@ class TrainConfig:
     initiation_window: int = 5  # first steps of each motion segment used as "end of the previous skill"
     device: str = "cpu"
     threads: int = 0  # torch CPU threads (0: torch's default); 1 is fastest on a shared, loaded machine
+    reg_target: str = "nominal"  # HSP-Reg's target: the un-perturbed initiation or the stored label (data.reg_target)
 
     def __post_init__(self):
         if self.threads < 0:
             raise ParameterError(f"threads must be >= 0, got {self.threads}")
+        if self.reg_target not in ("nominal", "initiation_target"):  # data.REG_TARGETS
+            raise ParameterError(f"reg_target must be nominal or initiation_target, got {self.reg_target!r}")
         if not (self.lr > 0 and self.batch_size >= 1 and self.epochs >= 1 and self.steps_per_epoch >= 1):
             raise ParameterError("lr must be > 0 and batch_size, epochs, steps_per_epoch >= 1")
         if (not 0 <= self.valid_ratio < 1 or self.eval_every < 0 or self.eval_rollouts < 1
@@ -119,7 +122,8 @@ class HSPConfig:
         if unknown:
             raise ValueError(f"unknown config fields {sorted(unknown)}")
         d["network"] = NetworkConfig(**d["network"])
-        d["train"] = TrainConfig(**d["train"])
+        # checkpoints from before reg_target existed trained I on the stored labels
+        d["train"] = TrainConfig(**{"reg_target": "initiation_target", **d["train"]})
         d["obs_stats"] = ObsStats.from_json(d["obs_stats"])
         d["initiation_norm"] = MinMax.from_json(d["initiation_norm"]) if d.get("initiation_norm") else None
         d["obs_shapes"] = {k: tuple(int(x) for x in v) for k, v in d["obs_shapes"].items()}

@@ -21,7 +21,7 @@ from typing import Sequence
 import h5py
 import numpy as np
 
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, ParameterError
 from ..tasks import get_task
 from .normalization import MinMax, ObsStats
 from .rotation import pose_to_pos_rot6d
@@ -119,6 +119,35 @@ class DemoArrays:
     mp_step: np.ndarray
     source_demo: np.ndarray
     initiation_target: np.ndarray
+    augmented: np.ndarray | None = None  # (T,) 1 on initiation augmentation's recovery steps
+
+
+REG_TARGETS = ("nominal", "initiation_target")
+
+
+def reg_target(d: DemoArrays, a: int, kind: str = "nominal") -> np.ndarray:
+    """(7,) HSP-Reg's target for the motion segment starting at step a.
+
+    "initiation_target": the stored label, the pose the motion went to; with initiation augmentation
+    that is the *perturbed* pose (uniform +-8 cm, up to 80 deg), i.e. noise around the skill's start.
+    "nominal": the initiation state T_W^{E_0} before the perturbation, where the skill's recovery
+    segment ends: the EE pose at the first non-augmented step of the skill that follows (the stored
+    label when that skill has no recovery steps). The paper's I "predicts initiation states T_W^{E_0}"
+    and trains on augmented data so that pi is "robust to incorrect initiation pose predictions"
+    (Appendix "Initiation Augmentation"): noise in I's targets would only teach it the noise."""
+    if kind not in REG_TARGETS:
+        raise ParameterError(f"unknown reg target {kind!r}; known: {list(REG_TARGETS)}", reason="INVALID_PARAMETER")
+    if kind == "initiation_target" or d.augmented is None or not {"robot0_eef_pos", "robot0_eef_quat"} <= set(d.obs):
+        return d.initiation_target[a]
+    mp = np.asarray(d.mp_step) != 0
+    b = a + int(np.argmin(mp[a:])) if not mp[a:].all() else len(mp)  # the skill after the motion starts here
+    if b >= len(mp) or not d.augmented[b]:
+        return d.initiation_target[a]
+    rest = np.flatnonzero(~mp[b:] & (np.asarray(d.augmented[b:]) == 0))
+    if not len(rest) or mp[b:b + rest[0]].any():  # no non-augmented step in this skill segment
+        return d.initiation_target[a]
+    i = b + int(rest[0])
+    return np.concatenate([d.obs["robot0_eef_pos"][i], d.obs["robot0_eef_quat"][i]]).astype(float)
 
 
 def read_demos(path: str, names: Sequence[str], keys: Sequence[str]) -> list[DemoArrays]:
@@ -129,7 +158,8 @@ def read_demos(path: str, names: Sequence[str], keys: Sequence[str]) -> list[Dem
             try:
                 out.append(DemoArrays({k: g["obs"][k][()] for k in keys}, g["actions"][()].astype(np.float32),
                                       g["labels/mp_step"][()], g["labels/source_demo"][()],
-                                      g["labels/initiation_target"][()]))
+                                      g["labels/initiation_target"][()],
+                                      g["labels/augmented"][()] if "augmented" in g["labels"] else None))
             except KeyError as e:
                 raise DatasetReadError(f"{path}/{n} lacks {e}")
     return out
@@ -148,8 +178,8 @@ def initiation_indices(mp_step: np.ndarray, window: int) -> list[tuple[int, int]
     return out
 
 
-def fit_initiation_norm(demos: Sequence[DemoArrays]) -> MinMax:
-    targets = [pose_to_pos_rot6d(d.initiation_target[a]) for d in demos for a, _ in segments(d.mp_step != 0)]
+def fit_initiation_norm(demos: Sequence[DemoArrays], kind: str = "nominal") -> MinMax:
+    targets = [pose_to_pos_rot6d(reg_target(d, a, kind)) for d in demos for a, _ in segments(d.mp_step != 0)]
     return MinMax.fit(np.array(targets))
 
 
@@ -157,7 +187,8 @@ class TrainingSet:
     """All samples of one split as flat arrays (low-dim normalized float32, images uint8)."""
 
     def __init__(self, demos: Sequence[DemoArrays], low_dim_keys: Sequence[str], image_keys: Sequence[str],
-                 stats: ObsStats, seq_length: int, all_steps: bool, init_window: int, init_norm: MinMax | None):
+                 stats: ObsStats, seq_length: int, all_steps: bool, init_window: int, init_norm: MinMax | None,
+                 reg_kind: str = "nominal"):
         if not demos:
             raise DatasetReadError("no demos in this split")
         self.obs = {k: np.concatenate([stats.normalize(k, d.obs[k].reshape(len(d.actions), -1))
@@ -173,10 +204,13 @@ class TrainingSet:
             for a, b in segs:
                 starts.append(np.arange(off + a, off + b))
                 ends.append(np.full(b - a, off + b))
+            targets = {}
             for i, a in initiation_indices(d.mp_step, init_window):
                 init_idx.append(off + i)
                 init_cls.append(int(d.source_demo[a]))
-                init_tgt.append(pose_to_pos_rot6d(d.initiation_target[a]))
+                if a not in targets:
+                    targets[a] = pose_to_pos_rot6d(reg_target(d, a, reg_kind))
+                init_tgt.append(targets[a])
             off += n
         self.size = off
         self.win_start = np.concatenate(starts) if starts else np.zeros(0, int)

@@ -93,7 +93,7 @@ def _new_config(req: TrainRequest) -> HSPConfig:
         num_source_demos=count_source_demos(req.demos_dir, info.task, info.num_source_demos) if hsp else
         info.num_source_demos, all_steps=all_steps, has_termination=hsp, has_class=hsp,
         has_reg=reg, obs_stats=fit_obs_stats(demos, LOW_DIM_KEYS),
-        initiation_norm=fit_initiation_norm(demos) if reg else None, dataset_sha256=file_sha256(req.dataset),
+        initiation_norm=fit_initiation_norm(demos, req.train.reg_target) if reg else None, dataset_sha256=file_sha256(req.dataset),
         dataset_path=str(req.dataset), train_demos=train, valid_demos=valid, network=req.network, train=req.train)
 
 
@@ -208,7 +208,8 @@ def _datasets(cfg: HSPConfig) -> tuple[TrainingSet, TrainingSet | None]:
 
     def build(names):
         return TrainingSet(read_demos(cfg.dataset_path, names, keys), cfg.low_dim_keys, cfg.image_keys, cfg.obs_stats,
-                           cfg.network.seq_length, cfg.all_steps, cfg.train.initiation_window, cfg.initiation_norm)
+                           cfg.network.seq_length, cfg.all_steps, cfg.train.initiation_window, cfg.initiation_norm,
+                           cfg.train.reg_target)
 
     return build(cfg.train_demos), (build(cfg.valid_demos) if cfg.valid_demos else None)
 

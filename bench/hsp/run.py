@@ -23,6 +23,9 @@ Datasets and checkpoints live under --work (out/bench_hsp, not in git).
     .venv/bin/python bench/hsp/run.py --device cuda --budget-steps 200000 --out bench/results/hsp_cuda.json
     # the budget's cost on one cell (Square D1): the budget vs 3x
     .venv/bin/python bench/hsp/run.py --cells Square/D1 --budget-minutes 75 --out bench/results/hsp_budget3x.json
+    # a smaller LSTM on the same data (its own --out; checkpoints go to net_hsp_1000_h200)
+    .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods HSP-TAMP HSP-Class HSP-Reg --hidden 200 \
+        --budget-minutes 25 --chunk-steps 9000 --datasets-from bench/results/hsp.json --out bench/results/hsp_h200.json
     # the data-scaling row: Square D2, HSP-Class, 200 demos
     .venv/bin/python bench/hsp/run.py --cells Square/D2 --methods HSP-Class --demos 200 --out bench/results/hsp_200demos.json
     # after a fix in deployment: evaluate the kept checkpoints again (the training records stay)
@@ -164,12 +167,19 @@ def evaluate_methods(store: Store, cell: str, network: str, ckpt: Path, step: in
         store.save()
 
 
+def net_dir(cell: str, network: str, a) -> Path:
+    """A network's checkpoints; sizes other than robomimic's get their own folder beside the same data."""
+    size = "" if a.hidden == 400 else f"_h{a.hidden}"
+    size += "" if list(a.mlp_hidden) == [1024, 1024] else "_m" + "x".join(map(str, a.mlp_hidden))
+    return Path(a.work) / cell.replace("/", "_") / f"net_{network}_{a.demos}{size}"
+
+
 def train_network(store: Store, cell: str, network: str, dataset: str, methods, a) -> None:
     """Train in chunks (the trainer resumes from last.pt), evaluating each chunk's checkpoint."""
     from skillgen_ros.core.learning.config import NetworkConfig, TrainConfig
     from skillgen_ros.core.learning.trainer import TrainRequest, train
 
-    out = Path(a.work) / cell.replace("/", "_") / f"net_{network}_{a.demos}"
+    out = net_dir(cell, network, a)
     rec = store.cell(cell)["networks"].setdefault(network, {"train_seconds": 0.0, "steps": 0, "finished": False})
     rec.update(dataset=dataset, hidden=a.hidden, mlp_hidden=list(a.mlp_hidden), budget_steps=a.budget_steps,
                budget_minutes=a.budget_minutes)
@@ -189,13 +199,13 @@ def train_network(store: Store, cell: str, network: str, dataset: str, methods, 
         evaluate_methods(store, cell, network, kept, int(r.config.step), methods, a)
 
 
-def kept_checkpoints(net_dir: Path, max_step: int) -> dict[int, Path]:
+def kept_checkpoints(folder: Path, max_step: int) -> dict[int, Path]:
     """The network's checkpoints on disk by training step (step_*.pt, best_*.pt, last.pt), up to max_step:
     a longer run that resumed in the same --work (the 3x budget) leaves later ones beside them."""
     from skillgen_ros.core.learning.checkpoint import read_checkpoint
 
     found: dict[int, Path] = {}
-    for f in sorted(net_dir.glob("step_*.pt")) + sorted(net_dir.glob("best_*.pt")) + [net_dir / "last.pt"]:
+    for f in sorted(folder.glob("step_*.pt")) + sorted(folder.glob("best_*.pt")) + [folder / "last.pt"]:
         if f.exists():
             step = int(read_checkpoint(f)[0].step)
             if step <= max_step:
@@ -213,10 +223,10 @@ def reevaluate_cell(store: Store, cell: str, a) -> None:
         nrec = c["networks"].get(network)
         if not mine or not nrec:
             continue
-        net_dir = Path(a.work) / cell.replace("/", "_") / f"net_{network}_{a.demos}"
-        ckpts = kept_checkpoints(net_dir, int(nrec["steps"]))
+        folder = net_dir(cell, network, a)
+        ckpts = kept_checkpoints(folder, int(nrec["steps"]))
         if not ckpts:
-            print(f"  {cell} {network}: no kept checkpoint in {net_dir}", flush=True)
+            print(f"  {cell} {network}: no kept checkpoint in {folder}", flush=True)
             continue
         for m in mine:
             old = c["methods"].pop(m, None)
@@ -224,7 +234,7 @@ def reevaluate_cell(store: Store, cell: str, a) -> None:
                                "reevaluated": {"reason": a.reevaluate, "steps": sorted(ckpts),
                                                "replaced_evals": (old or {}).get("evals", [])}}
         for step, path in ckpts.items():
-            tmp = net_dir / f"reeval_{step:06d}.pt"  # best_* copies are rewritten while we read
+            tmp = folder / f"reeval_{step:06d}.pt"  # best_* copies are rewritten while we read
             shutil.copyfile(path, tmp)
             evaluate_methods(store, cell, network, tmp, step, mine, a)
             tmp.unlink()
@@ -276,6 +286,8 @@ def main(argv=None) -> int:
     p.add_argument("--max-attempts-factor", type=int, default=5)
     p.add_argument("--work", default="out/bench_hsp", help="datasets and checkpoints (not in git)")
     p.add_argument("--out", default=str(ROOT / "bench" / "results" / "hsp.json"))
+    p.add_argument("--datasets-from", metavar="JSON", default="",
+                   help="reuse the datasets another results file generated (a new --out for another size or budget)")
     p.add_argument("--reevaluate", metavar="REASON", default="",
                    help="evaluate the kept checkpoints of the cells' methods again (after a deploy fix; REASON is recorded)")
     a = p.parse_args(argv)
@@ -287,6 +299,11 @@ def main(argv=None) -> int:
     Path(a.work).mkdir(parents=True, exist_ok=True)
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     store = Store(Path(a.out), a)
+    if a.datasets_from:  # another network size or budget on the same generated data
+        other = json.loads(Path(a.datasets_from).read_text()).get("cells", {})
+        for cell in a.cells:
+            if cell in other and not store.cell(cell)["datasets"]:
+                store.cell(cell)["datasets"] = other[cell].get("datasets", {})
     for cell in a.cells:
         print(f"== {cell}", flush=True)
         (reevaluate_cell if a.reevaluate else run_cell)(store, cell, a)

@@ -77,7 +77,8 @@ class Store:
                  "command": shlex.join([".venv/bin/python", "bench/hsp/run.py", *sys.argv[1:]])})
         else:
             self.data["machine"] = machine_info()
-            self.data["protocol"] = {k: v for k, v in vars(args).items() if k not in ("cells", "methods", "reevaluate")}
+            self.data["protocol"] = {k: v for k, v in vars(args).items() if k not in ("cells", "methods", "reevaluate",
+                                                                                  "datasets_from")}
         self.data.setdefault("cells", {})
 
     def cell(self, name: str) -> dict:

@@ -247,11 +247,12 @@ def render() -> str:
     cells = cell_rows()
     if cells:
         lines += [""] + cells
-    from bench.hsp.table import budget_rows, hsp_rows
+    from bench.hsp.table import budget_rows, hsp_rows, reg_target_rows, size_rows
 
     hsp = hsp_rows(load("hsp"))
     if hsp:
         lines += [""] + hsp + budget_rows(load("hsp"), load("hsp_budget3x"))
+        lines += size_rows(load("hsp"), load("hsp_budget3x"), load("hsp_h200")) + reg_target_rows(load("hsp_reg_target"))
     lines += ["", END]
     return "\n".join(lines)
 

@@ -55,6 +55,12 @@ def hsp_rows(data: dict) -> list[str]:
             row += [_best(c, m), "" if paper.get(m) is None else f"{paper[m]:g}%"]
         out.append("| " + " | ".join(row) + " |")
     out += [""] + [line for n, c in cells.items() if (line := _network_line(n, c))]
+    for n, c in cells.items():
+        again = {m: r["reevaluated"] for m, r in c.get("methods", {}).items() if "reevaluated" in r}
+        if again:
+            steps = sorted({s for r in again.values() for s in r.get("steps", [])})
+            reason = next(iter(again.values())).get("reason", "")
+            out.append(f"- {n}: {', '.join(again)} evaluated again on the kept checkpoints (steps {steps}): {reason}.")
     s = data.get("summary", {})
     gap = s.get("hsp_class_minus_bc_d1_d2_points")
     if gap is not None:
@@ -88,3 +94,50 @@ def budget_rows(base: dict, longer: dict) -> list[str]:
                        f"{'; '.join(f'{k}: {v}' for k, v in mins.items())}): best at the budget -> best so far: "
                        + ", ".join(parts) + ".")
     return out
+
+
+def size_rows(base: dict, longer: dict, small: dict) -> list[str]:
+    """A smaller LSTM on the same data and budget (issue 23 allows one that costs at most ~5 points):
+    per method, the best at the budget for each size (`base`: robomimic's size), and both at the
+    steps they share (`longer`: the same robomimic-size networks trained on, evaluated at more steps)."""
+    out = []
+    for name, c in small.get("cells", {}).items():
+        b = base.get("cells", {}).get(name, {})
+        n, nb = c.get("networks", {}).get("hsp"), b.get("networks", {}).get("hsp")
+        if not n or not nb:
+            continue
+        parts = []
+        for m in METHODS:
+            mine = c.get("methods", {}).get(m, {})
+            theirs = b.get("methods", {}).get(m, {})
+            if "best" not in mine or "best" not in theirs:
+                continue
+            evals = longer.get("cells", {}).get(name, {}).get("methods", {}).get(m, {}).get("evals", [])
+            shared = {e["step"]: e for e in evals or theirs.get("evals", [])}
+            same = [f"{e['successes']} vs {shared[e['step']]['successes']} at {e['step']}"
+                    for e in mine["evals"] if e["step"] in shared]
+            parts.append(f"{m} {mine['best']['successes']}/{mine['best']['rollouts']} (step {mine['best']['step']}) vs "
+                         f"{theirs['best']['successes']}/{theirs['best']['rollouts']} (step {theirs['best']['step']})"
+                         + (f" [same steps: {', '.join(same)}]" if same else ""))
+        if parts:
+            out.append(f"- LSTM {n['hidden']} vs {nb['hidden']}, {name}, same data and "
+                       f"{small.get('protocol', {}).get('budget_minutes', '?')}-minute budget "
+                       f"(bench/results/hsp_h{n['hidden']}.json; {n['steps']} steps in {n['train_seconds'] / 60:.0f} min, "
+                       f"{n.get('ms_per_train_step', 0):.0f} ms/step, vs {nb['steps']} in "
+                       f"{nb['train_seconds'] / 60:.0f} min): " + "; ".join(parts) + ".")
+    return out
+
+
+def reg_target_rows(data: dict) -> list[str]:
+    """HSP-Reg with I retrained on each target (bench/hsp/retrain_reg.py), pi and T unchanged."""
+    runs = data.get("runs", {})
+    if not runs:
+        return []
+    parts = []
+    for key, r in sorted(runs.items()):
+        e = r["evaluation"]
+        lo, hi = e["wilson_95"]
+        parts.append(f"{key.rsplit('/', 2)[0]} I on {r['target']}: {e['successes']}/{e['rollouts']} "
+                     f"({100 * lo:.0f}-{100 * hi:.0f}%; failures {e['failures']})")
+    return ["- HSP-Reg's target (bench/results/hsp_reg_target.json; I retrained alone for the checkpoint's own "
+            "steps, pi and T unchanged): " + "; ".join(parts) + "."]

@@ -230,14 +230,19 @@ def reevaluate_cell(store: Store, cell: str, a) -> None:
             print(f"  {cell} {network}: no kept checkpoint in {folder}", flush=True)
             continue
         for m in mine:
-            old = c["methods"].pop(m, None)
+            old = c["methods"].pop(m, None) or {}
+            first = old.get("reevaluated", {}).get("replaced_evals")  # the training run's own evals, kept once
             c["methods"][m] = {"evals": [], "paper": PAPER.get(cell, {}).get(m),
                                "reevaluated": {"reason": a.reevaluate, "steps": sorted(ckpts),
-                                               "replaced_evals": (old or {}).get("evals", [])}}
+                                               "replaced_evals": first if first is not None else old.get("evals", [])}}
+        # copy them all first: evaluate_methods rewrites best_*.pt, which may be where a later step lives
+        copies = {}
         for step, path in ckpts.items():
-            tmp = folder / f"reeval_{step:06d}.pt"  # best_* copies are rewritten while we read
-            shutil.copyfile(path, tmp)
+            copies[step] = folder / f"reeval_{step:06d}.pt"
+            shutil.copyfile(path, copies[step])
+        for step, tmp in copies.items():
             evaluate_methods(store, cell, network, tmp, step, mine, a)
+            shutil.copyfile(tmp, folder / f"step_{step:06d}.pt")  # kept under its step from now on
             tmp.unlink()
     c["table"] = {m: c["methods"][m]["best"] for m in METHODS if "best" in c["methods"].get(m, {})}
     store.save()

@@ -23,9 +23,9 @@ Datasets and checkpoints live under --work (out/bench_hsp, not in git).
     .venv/bin/python bench/hsp/run.py --device cuda --budget-steps 200000 --out bench/results/hsp_cuda.json
     # the budget's cost on one cell (Square D1): the budget vs 3x
     .venv/bin/python bench/hsp/run.py --cells Square/D1 --budget-minutes 75 --out bench/results/hsp_budget3x.json
-    # a smaller LSTM on the same data (its own --out; checkpoints go to net_hsp_1000_h200)
-    .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods HSP-TAMP HSP-Class HSP-Reg --hidden 200 \
-        --budget-minutes 25 --chunk-steps 9000 --datasets-from bench/results/hsp.json --out bench/results/hsp_h200.json
+    # a smaller LSTM on the same data, evaluated at the same steps (its own --out; checkpoints in net_hsp_1000_h200)
+    .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods HSP-Class --hidden 200 --budget-steps 18000 \
+        --chunk-steps 4500 --datasets-from bench/results/hsp.json --out bench/results/hsp_h200.json
     # the data-scaling row: Square D2, HSP-Class, 200 demos
     .venv/bin/python bench/hsp/run.py --cells Square/D2 --methods HSP-Class --demos 200 --out bench/results/hsp_200demos.json
     # after a fix in deployment: evaluate the kept checkpoints again (the training records stay)

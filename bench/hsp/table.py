@@ -120,11 +120,11 @@ def size_rows(base: dict, longer: dict, small: dict) -> list[str]:
                          f"{theirs['best']['successes']}/{theirs['best']['rollouts']} (step {theirs['best']['step']})"
                          + (f" [same steps: {', '.join(same)}]" if same else ""))
         if parts:
-            out.append(f"- LSTM {n['hidden']} vs {nb['hidden']}, {name}, same data and "
-                       f"{small.get('protocol', {}).get('budget_minutes', '?')}-minute budget "
+            out.append(f"- LSTM {n['hidden']} vs {nb['hidden']}, {name}, same data "
                        f"(bench/results/hsp_h{n['hidden']}.json; {n['steps']} steps in {n['train_seconds'] / 60:.0f} min, "
                        f"{n.get('ms_per_train_step', 0):.0f} ms/step, vs {nb['steps']} in "
-                       f"{nb['train_seconds'] / 60:.0f} min): " + "; ".join(parts) + ".")
+                       f"{nb['train_seconds'] / 60:.0f} min; best so far vs best within the budget, then "
+                       f"successes at the same steps): " + "; ".join(parts) + ".")
     return out
 
 

@@ -272,7 +272,7 @@ def test_ctrl_c_then_resume_on_the_command_line(tmp_path):
     try:
         end = time.monotonic() + 600
         while p.poll() is None and time.monotonic() < end and not (journal.exists() and journal.read_text()):
-            time.sleep(0.2)
+            time.sleep(0.2)  # poll interval; the loop waits on the journal (observable state)
         assert p.poll() is None, p.communicate()[1][-2000:]
         os.killpg(p.pid, signal.SIGINT)
         so, se = p.communicate(timeout=600)

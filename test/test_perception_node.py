@@ -66,7 +66,7 @@ def publish_until_seen(node, pub, msg, timeout=30.0) -> EstimatePoses.Response:
     end = time.monotonic() + timeout
     while True:
         pub.publish(msg)
-        time.sleep(0.3)
+        time.sleep(0.3)  # a camera's frame period (pacing); the loop waits on the node's answer
         res = call(node)
         if res.status != EstimatePoses.Response.NO_DATA or time.monotonic() > end:
             return res

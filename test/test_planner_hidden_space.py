@@ -70,7 +70,7 @@ def test_the_node_occupies_what_the_camera_could_not_see_behind_a_box(ros_domain
                     pubs["pose"].publish(pose)
                 pubs["points"].publish(convert.points_to_cloud(f.points_world.reshape(-1, 3), "world", stamp,
                                                                organized_shape=f.depth.shape))
-                time.sleep(0.1)
+                time.sleep(0.1)  # the camera's 10 Hz (pacing, not synchronisation)
         t = threading.Thread(target=camera, daemon=True)
         t.start()
         try:

@@ -135,7 +135,7 @@ def test_start_from_joint_states_and_execute(client):
     def driver_rate():  # the planner reads one joint_states on demand, as from a 20 Hz driver
         while not stop.is_set():
             js.publish(msg)
-            time.sleep(0.05)
+            time.sleep(0.05)  # a 20 Hz driver (pacing, not synchronisation)
     pub = threading.Thread(target=driver_rate, daemon=True)
     pub.start()
     try:

@@ -111,7 +111,7 @@ def test_an_rrt_iteration_budget_ends_the_same_search_however_slow_the_machine(w
     cm.set_boxes([WALL])
 
     def slow(q0, q1):
-        time.sleep(0.002)
+        time.sleep(0.002)  # a slow checker (work, not synchronisation): the plan must not change
         return cm.check_motion(q0, q1)
 
     rrt = JointSpaceRRT(kin.lower, kin.upper)

@@ -86,7 +86,7 @@ def test_an_iteration_budget_finds_the_same_solutions_however_slow_the_machine(k
     T = kin.fk(np.array([0.3, 0.4, -0.2, -2.1, 0.1, 2.4, 0.5]))
 
     def slow(Q):
-        time.sleep(0.002)
+        time.sleep(0.002)  # a slow checker (work, not synchronisation): budgets in iterations hold
         return np.zeros(len(Q), bool)
 
     results = [IKSolver(kin, collision_checker=c, rng=9).solve(T, timeout=30.0, max_solutions=50,

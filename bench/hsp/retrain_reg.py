@@ -70,9 +70,11 @@ def retrain(checkpoint: str, target: str, out_path: str, steps: int | None, seed
 
 
 def main(argv=None) -> int:
+    from skillgen_ros.core.learning.config import REG_TARGETS
+
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--checkpoint", required=True)
-    p.add_argument("--target", choices=["nominal", "initiation_target"], default="nominal")
+    p.add_argument("--target", choices=REG_TARGETS, default="nominal")
     p.add_argument("--steps", type=int, default=0, help="I's training steps (0: the checkpoint's own)")
     p.add_argument("--seed", type=int, default=0, help="I's initial weights and batches, and the evaluation seed")
     p.add_argument("--rollouts", type=int, default=50)

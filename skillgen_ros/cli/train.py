@@ -15,7 +15,7 @@ import argparse
 import json
 import logging
 
-from skillgen_ros.core.learning.config import NetworkConfig, TrainConfig
+from skillgen_ros.core.learning.config import REG_TARGETS, NetworkConfig, TrainConfig
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -45,7 +45,7 @@ def _parser() -> argparse.ArgumentParser:
     reg = p.add_mutually_exclusive_group()
     reg.add_argument("--reg", dest="reg", action="store_true", default=None, help="train HSP-Reg's I")
     reg.add_argument("--no-reg", dest="reg", action="store_false", help="never train HSP-Reg's I")
-    p.add_argument("--reg-target", choices=["nominal", "initiation_target"], default=t.reg_target,
+    p.add_argument("--reg-target", choices=REG_TARGETS, default=t.reg_target,
                    help="HSP-Reg's target: the initiation before augmentation's perturbation (nominal) or the "
                         "stored, perturbed label")
     p.add_argument("--stop-after", type=int, default=0, help="stop (as Ctrl-C) after N steps of this invocation")

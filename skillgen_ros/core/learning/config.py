@@ -42,6 +42,9 @@ class NetworkConfig:
             raise ParameterError("gmm_min_std must be > 0 and pixel_shift in [0, 0.5)")
 
 
+REG_TARGETS = ("nominal", "initiation_target")  # what HSP-Reg's I learns (data.reg_target)
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     lr: float = 1e-4
@@ -60,8 +63,8 @@ class TrainConfig:
     def __post_init__(self):
         if self.threads < 0:
             raise ParameterError(f"threads must be >= 0, got {self.threads}")
-        if self.reg_target not in ("nominal", "initiation_target"):  # data.REG_TARGETS
-            raise ParameterError(f"reg_target must be nominal or initiation_target, got {self.reg_target!r}")
+        if self.reg_target not in REG_TARGETS:
+            raise ParameterError(f"reg_target must be one of {list(REG_TARGETS)}, got {self.reg_target!r}")
         if not (self.lr > 0 and self.batch_size >= 1 and self.epochs >= 1 and self.steps_per_epoch >= 1):
             raise ParameterError("lr must be > 0 and batch_size, epochs, steps_per_epoch >= 1")
         if (not 0 <= self.valid_ratio < 1 or self.eval_every < 0 or self.eval_rollouts < 1

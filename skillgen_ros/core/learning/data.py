@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import InvalidInputError, ParameterError
 from ..tasks import get_task
+from .config import REG_TARGETS
 from .normalization import MinMax, ObsStats
 from .rotation import pose_to_pos_rot6d
 from .termination import segments, termination_labels
@@ -120,9 +121,6 @@ class DemoArrays:
     source_demo: np.ndarray
     initiation_target: np.ndarray
     augmented: np.ndarray | None = None  # (T,) 1 on initiation augmentation's recovery steps
-
-
-REG_TARGETS = ("nominal", "initiation_target")
 
 
 def reg_target(d: DemoArrays, a: int, kind: str = "nominal") -> np.ndarray:

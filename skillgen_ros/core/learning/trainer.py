@@ -93,7 +93,8 @@ def _new_config(req: TrainRequest) -> HSPConfig:
         num_source_demos=count_source_demos(req.demos_dir, info.task, info.num_source_demos) if hsp else
         info.num_source_demos, all_steps=all_steps, has_termination=hsp, has_class=hsp,
         has_reg=reg, obs_stats=fit_obs_stats(demos, LOW_DIM_KEYS),
-        initiation_norm=fit_initiation_norm(demos, req.train.reg_target) if reg else None, dataset_sha256=file_sha256(req.dataset),
+        initiation_norm=fit_initiation_norm(demos, req.train.reg_target) if reg else None,
+        dataset_sha256=file_sha256(req.dataset),
         dataset_path=str(req.dataset), train_demos=train, valid_demos=valid, network=req.network, train=req.train)
 
 

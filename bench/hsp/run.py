@@ -146,6 +146,15 @@ def make_dataset(store: Store, cell: str, network: str, a) -> str:
     return str(merged)
 
 
+def _copy(src: Path, dst: Path) -> None:
+    """Copy a checkpoint atomically: another process (retrain_reg, a second run) may be reading dst."""
+    if src.resolve() == dst.resolve():
+        return
+    tmp = dst.with_name(dst.name + ".tmp")
+    shutil.copyfile(src, tmp)
+    os.replace(tmp, dst)
+
+
 def evaluate_methods(store: Store, cell: str, network: str, ckpt: Path, step: int, methods, a) -> None:
     from skillgen_ros.core.deploy import evaluate
     from skillgen_ros.core.learning.checkpoint import load_hsp
@@ -162,8 +171,7 @@ def evaluate_methods(store: Store, cell: str, network: str, ckpt: Path, step: in
         mrec["evals"].append(rec)
         if "best" not in mrec or rec["success_rate"] > mrec["best"]["success_rate"]:
             mrec["best"] = rec
-            if ckpt.resolve() != (ckpt.parent / f"best_{m}.pt").resolve():
-                shutil.copyfile(ckpt, ckpt.parent / f"best_{m}.pt")
+            _copy(ckpt, ckpt.parent / f"best_{m}.pt")
         print(f"  {cell} {m} @ step {step}: {s.line()}", flush=True)
         store.save()
 
@@ -196,7 +204,7 @@ def train_network(store: Store, cell: str, network: str, dataset: str, methods, 
         rec["ms_per_train_step"] = 1000 * rec["train_seconds"] / max(1, rec["steps"])
         store.save()
         kept = out / f"step_{int(r.config.step):06d}.pt"  # every chunk's checkpoint stays: --reevaluate reads them
-        shutil.copyfile(r.last_path, kept)
+        _copy(Path(r.last_path), kept)
         evaluate_methods(store, cell, network, kept, int(r.config.step), methods, a)
 
 
@@ -239,10 +247,10 @@ def reevaluate_cell(store: Store, cell: str, a) -> None:
         copies = {}
         for step, path in ckpts.items():
             copies[step] = folder / f"reeval_{step:06d}.pt"
-            shutil.copyfile(path, copies[step])
+            _copy(path, copies[step])
         for step, tmp in copies.items():
             evaluate_methods(store, cell, network, tmp, step, mine, a)
-            shutil.copyfile(tmp, folder / f"step_{step:06d}.pt")  # kept under its step from now on
+            _copy(tmp, folder / f"step_{step:06d}.pt")  # kept under its step from now on
             tmp.unlink()
     c["table"] = {m: c["methods"][m]["best"] for m in METHODS if "best" in c["methods"].get(m, {})}
     store.save()

@@ -137,7 +137,7 @@ def reg_target_rows(data: dict) -> list[str]:
     for key, r in sorted(runs.items()):
         e = r["evaluation"]
         lo, hi = e["wilson_95"]
-        parts.append(f"{key.rsplit('/', 2)[0]} I on {r['target']}: {e['successes']}/{e['rollouts']} "
+        parts.append(f"{key.rsplit('/', 2)[0]} I on {r['target']}, seed {r['seed']}: {e['successes']}/{e['rollouts']} "
                      f"({100 * lo:.0f}-{100 * hi:.0f}%; failures {e['failures']})")
     return ["- HSP-Reg's target (bench/results/hsp_reg_target.json; I retrained alone for the checkpoint's own "
             "steps, pi and T unchanged): " + "; ".join(parts) + "."]

@@ -252,8 +252,13 @@ def reevaluate_cell(store: Store, cell: str, a) -> None:
             evaluate_methods(store, cell, network, tmp, step, mine, a)
             _copy(tmp, folder / f"step_{step:06d}.pt")  # kept under its step from now on
             tmp.unlink()
-    c["table"] = {m: c["methods"][m]["best"] for m in METHODS if "best" in c["methods"].get(m, {})}
+    _update_table(c, METHODS)
     store.save()
+
+
+def _update_table(c: dict, methods) -> None:
+    """A cell's table: the best evaluation of each of `methods` that has one."""
+    c["table"] = {m: c["methods"][m]["best"] for m in methods if "best" in c["methods"].get(m, {})}
 
 
 def run_cell(store: Store, cell: str, a) -> None:
@@ -266,7 +271,7 @@ def run_cell(store: Store, cell: str, a) -> None:
         if mine:
             dataset = make_dataset(store, cell, network, a)
             train_network(store, cell, network, dataset, mine, a)
-    c["table"] = {m: c["methods"][m]["best"] for m in methods if "best" in c["methods"].get(m, {})}
+    _update_table(c, methods)
     store.save()
 
 

@@ -138,13 +138,12 @@ def reg_target(d: DemoArrays, a: int, kind: str = "nominal") -> np.ndarray:
     if kind == "initiation_target" or d.augmented is None or not {"robot0_eef_pos", "robot0_eef_quat"} <= set(d.obs):
         return d.initiation_target[a]
     mp = np.asarray(d.mp_step) != 0
-    b = a + int(np.argmin(mp[a:])) if not mp[a:].all() else len(mp)  # the skill after the motion starts here
-    if b >= len(mp) or not d.augmented[b]:
+    b = next((e for s, e in segments(mp) if s == a), a)  # the motion from a ends where its skill starts
+    c = next((e for s, e in segments(~mp) if s == b), b)
+    recovery = np.asarray(d.augmented[b:c]) != 0
+    if not len(recovery) or not recovery[0] or recovery.all():  # no skill, no recovery, or no end to it
         return d.initiation_target[a]
-    rest = np.flatnonzero(~mp[b:] & (np.asarray(d.augmented[b:]) == 0))
-    if not len(rest) or mp[b:b + rest[0]].any():  # no non-augmented step in this skill segment
-        return d.initiation_target[a]
-    i = b + int(rest[0])
+    i = b + int(np.argmin(recovery))  # the skill's first non-augmented step
     return np.concatenate([d.obs["robot0_eef_pos"][i], d.obs["robot0_eef_quat"][i]]).astype(float)
 
 

@@ -13,6 +13,7 @@ from _learning_data import generated_dataset, tiny_checkpoint
 from skillgen_ros.core.errors import CheckpointError, InvalidInputError
 from skillgen_ros.core.learning import load_hsp
 from skillgen_ros.core.learning.checkpoint import FORMAT, read_checkpoint, save_checkpoint
+from skillgen_ros.core.learning.observation import add_derived
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +24,7 @@ def ckpt(tmp_path_factory):
 def _first_obs(cfg, t=0):
     with h5py.File(cfg.dataset_path, "r") as f:
         g = f["data"][cfg.train_demos[0]]["obs"]
-        return {k: g[k][t] for k in g}
+        return add_derived({k: g[k][t] for k in g})  # what policy_obs gives the policy
 
 
 def test_round_trip_gives_the_same_networks_and_config(ckpt, tmp_path):

@@ -12,6 +12,7 @@ from skillgen_ros.core.learning.config import NetworkConfig, TrainConfig
 from skillgen_ros.core.learning.data import initiation_indices
 from skillgen_ros.core.learning.hsp import HybridSkillPolicy
 from skillgen_ros.core.learning.networks import build_networks
+from skillgen_ros.core.learning.observation import add_derived
 from skillgen_ros.core.learning.termination import segments, termination_labels
 from skillgen_ros.core.learning.trainer import TrainRequest, train
 
@@ -32,7 +33,7 @@ def _demos(cfg):
     with h5py.File(cfg.dataset_path, "r") as f:
         for n in cfg.train_demos:
             g = f["data"][n]
-            yield ({k: g["obs"][k][()] for k in g["obs"]}, g["actions"][()], g["labels/mp_step"][()],
+            yield (add_derived({k: g["obs"][k][()] for k in g["obs"]}), g["actions"][()], g["labels/mp_step"][()],
                    g["labels/source_demo"][()], g["labels/initiation_target"][()])
 
 

@@ -12,6 +12,7 @@ from _learning_data import TINY, generated_dataset, tiny_checkpoint
 from skillgen_ros.core.errors import CheckpointError, InvalidInputError
 from skillgen_ros.core.learning import load_hsp
 from skillgen_ros.core.learning.networks import build_networks
+from skillgen_ros.core.learning.observation import add_derived
 from skillgen_ros.core.learning.resnet import ImageEncoder, ResNet18Conv, pixel_shift
 
 
@@ -58,7 +59,7 @@ def test_a_tiny_image_run_trains_the_resnet_and_acts(image_data, tmp_path_factor
         assert not torch.equal(before, after), f"{name}'s ResNet got no gradient"
     with h5py.File(cfg.dataset_path, "r") as f:
         g = f["data/demo_0/obs"]
-        o = {k: g[k][3] for k in g}
+        o = add_derived({k: g[k][3] for k in g})
     p.start_skill(0)
     a = p.act(o)
     p.start_skill(0)
@@ -76,7 +77,7 @@ def test_mimicgen_data_trains_the_bc_rnn_baseline_on_every_step(tmp_path_factory
     assert (cfg.method, cfg.all_steps, cfg.has_termination, cfg.has_class, cfg.has_reg) == (
         "mimicgen", True, False, False, False)
     with h5py.File(data, "r") as f:
-        o = {k: v[0] for k, v in f["data/demo_0/obs"].items()}
+        o = add_derived({k: v[0] for k, v in f["data/demo_0/obs"].items()})
     p.start_skill(0)
     assert p.act(o).shape == (7,)
     with pytest.raises(CheckpointError, match="no termination classifier"):
@@ -96,7 +97,7 @@ def test_an_augmented_dataset_gets_hsp_reg_by_default(tmp_path_factory, tmp_path
     p = load_hsp(tiny_checkpoint(tmp_path_factory, aug))
     assert p.config.has_reg and p.config.initiation_norm is not None
     with h5py.File(aug, "r") as f:
-        o = {k: v[0] for k, v in f["data/demo_0/obs"].items()}
+        o = add_derived({k: v[0] for k, v in f["data/demo_0/obs"].items()})
     pose = p.initiation_pose(o)
     assert pose.shape == (7,) and abs(np.linalg.norm(pose[3:]) - 1) < 1e-9
     assert not load_hsp(tiny_checkpoint(tmp_path_factory, aug, "--no-reg")).config.has_reg

@@ -30,7 +30,8 @@ from skillgen_ros.core.learning.networks import build_networks  # noqa: E402
 from skillgen_ros.core.learning.normalization import ObsStats  # noqa: E402
 from skillgen_ros.core.learning.observation import IMAGE_KEYS, LOW_DIM_KEYS  # noqa: E402
 
-SHAPES = {"robot0_eef_pos": (3,), "robot0_eef_quat": (4,), "robot0_gripper_qpos": (2,), "object": (14,)}
+SHAPES = {"robot0_eef_pos": (3,), "robot0_eef_quat": (4,), "robot0_gripper_qpos": (2,), "object": (14,),
+          "object_to_eef": (14,)}
 
 
 def square_config(images: bool, net: NetworkConfig) -> HSPConfig:

@@ -153,3 +153,20 @@ class Symmetry(str, Enum):
         except ValueError:
             raise InvalidInputError(f"unknown symmetry {value!r}; expected one of "
                                     f"{[s.value for s in Symmetry]}") from None
+
+
+def poses_in_frame(frames: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """(N,7) poses expressed in (N,7) frames (x y z qx qy qz qw): row i is frames[i]^-1 * poses[i].
+
+    Quaternions come out with qw >= 0 (one sign per rotation, so a network sees no sign flips).
+    A row with a non-finite input is NaN (an object pose that was not estimated stays unknown).
+    """
+    frames = np.asarray(frames, float).reshape(-1, 7)
+    poses = np.asarray(poses, float).reshape(-1, 7)
+    out = np.full((len(poses), 7), np.nan)
+    ok = np.all(np.isfinite(frames), axis=1) & np.all(np.isfinite(poses), axis=1)
+    if ok.any():
+        R_f = Rotation.from_quat(frames[ok, 3:])
+        out[ok, :3] = R_f.inv().apply(poses[ok, :3] - frames[ok, :3])
+        out[ok, 3:] = (R_f.inv() * Rotation.from_quat(poses[ok, 3:])).as_quat(canonical=True)
+    return out

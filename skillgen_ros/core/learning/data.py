@@ -25,6 +25,7 @@ from ..errors import InvalidInputError, ParameterError
 from ..tasks import get_task
 from .config import REG_TARGETS
 from .normalization import MinMax, ObsStats
+from .observation import DERIVED_FROM, DERIVED_KEYS, add_derived, derived_shapes
 from .rotation import pose_to_pos_rot6d
 from .termination import segments, termination_labels
 
@@ -62,6 +63,7 @@ def dataset_info(path: str) -> DatasetInfo:
                 raise DatasetReadError(f"{path} holds no demos")
             g = f["data"][names[0]]
             shapes = {k: tuple(g["obs"][k].shape[1:]) for k in g["obs"]}
+            shapes.update(derived_shapes(shapes))
             methods = {str(f["data"][n].attrs.get("method", env.get("generation", {}).get("method", "skillgen")))
                        for n in names}
             src = max(int(f["data"][n]["labels/source_demo"][()].max(initial=-1)) for n in names) + 1
@@ -148,12 +150,18 @@ def reg_target(d: DemoArrays, a: int, kind: str = "nominal") -> np.ndarray:
 
 
 def read_demos(path: str, names: Sequence[str], keys: Sequence[str]) -> list[DemoArrays]:
+    """Each named demo's obs `keys` (DERIVED_KEYS computed from the stored ones), actions and labels."""
     out = []
+    stored = [k for k in keys if k not in DERIVED_KEYS]
     with h5py.File(path, "r", locking=False) as f:
         for n in names:
             g = f["data"][n]
             try:
-                out.append(DemoArrays({k: g["obs"][k][()] for k in keys}, g["actions"][()].astype(np.float32),
+                obs = {k: g["obs"][k][()] for k in stored}
+                if len(stored) < len(keys):
+                    obs = {k: v for k, v in add_derived({**{k: g["obs"][k][()] for k in DERIVED_FROM}, **obs}).items()
+                           if k in keys}
+                out.append(DemoArrays(obs, g["actions"][()].astype(np.float32),
                                       g["labels/mp_step"][()], g["labels/source_demo"][()],
                                       g["labels/initiation_target"][()],
                                       g["labels/augmented"][()] if "augmented" in g["labels"] else None))

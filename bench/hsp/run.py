@@ -79,6 +79,8 @@ class Store:
             self.data["machine"] = machine_info()
             self.data["protocol"] = {k: v for k, v in vars(args).items() if k not in ("cells", "methods", "reevaluate",
                                                                                   "datasets_from")}
+            from skillgen_ros.core.learning.observation import LOW_DIM_KEYS
+            self.data["protocol"]["low_dim_keys"] = list(LOW_DIM_KEYS)  # what the networks read
         self.data.setdefault("cells", {})
 
     def cell(self, name: str) -> dict:
@@ -97,6 +99,8 @@ def rerun_command(cell: str, a) -> str:
             f"--work {a.work}", f"--out {os.path.relpath(a.out, ROOT)}"]
     if a.budget_minutes:
         keep.append(f"--budget-minutes {a.budget_minutes}")
+    if a.threads:
+        keep.append(f"--threads {a.threads}")
     return ".venv/bin/python bench/hsp/run.py " + " ".join(keep)
 
 
@@ -194,7 +198,8 @@ def train_network(store: Store, cell: str, network: str, dataset: str, methods, 
                budget_minutes=a.budget_minutes)
     net = NetworkConfig(rnn_hidden=a.hidden, mlp_hidden=tuple(a.mlp_hidden))
     epochs = max(1, a.budget_steps // a.steps_per_epoch)
-    tc = TrainConfig(epochs=epochs, steps_per_epoch=a.steps_per_epoch, eval_every=0, device=a.device, seed=a.seed)
+    tc = TrainConfig(epochs=epochs, steps_per_epoch=a.steps_per_epoch, eval_every=0, device=a.device, seed=a.seed,
+                     threads=a.threads)
     while not rec["finished"] and not (a.budget_minutes and rec["train_seconds"] >= 60 * a.budget_minutes):
         t = time.time()
         r = train(TrainRequest(dataset=dataset, output_dir=str(out), network=net, train=tc,
@@ -301,6 +306,7 @@ def main(argv=None) -> int:
     p.add_argument("--hidden", type=int, default=400, help="LSTM size (robomimic 400; smaller must be disclosed)")
     p.add_argument("--mlp-hidden", type=int, nargs="+", default=[1024, 1024])
     p.add_argument("--device", default="cpu")
+    p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default; 1 when two runs share 2 cores)")
     p.add_argument("--shard", type=int, default=100, help="demos per generation shard (the resume granularity)")
     p.add_argument("--max-attempts-factor", type=int, default=5)
     p.add_argument("--work", default="out/bench_hsp", help="datasets and checkpoints (not in git)")

@@ -244,3 +244,40 @@ def test_a_run_keeps_no_episode_after_writing_it(demos, tmp_path):
     kept = run_generation(FakeWorld(), demos, TASK, RunRequest(**{**req.__dict__, "output_dir": str(tmp_path / "k")}),
                           write_report=False, keep_episodes=True)
     assert all(r.episode.num_samples > 0 for r in kept.results)
+
+
+def test_a_stop_mid_attempt_abandons_it_and_its_index_runs_the_same_later(demos, tmp_path):
+    """issue 21: a cancel ends the run at the running attempt's next step, not after the attempt;
+    the abandoned attempt is not written, and running its index later gives the serial run's attempt."""
+    import h5py
+
+    from skillgen_ros.core.generation.session import RunRequest, run_generation
+
+    req = RunRequest(task="pick_place", variant="D1", attempts=3, seed=3, output_dir=str(tmp_path / "serial"),
+                     video_attempts=0)
+    serial = run_generation(FakeWorld(), demos, TASK, req, write_report=False, keep_episodes=True)
+    asked: list[int] = []  # stop requests are checked before every step and env call: count them
+
+    def stop() -> str:
+        asked.append(len(asked))
+        return "CANCELED" if len(asked) > per_attempt + 5 else ""  # a few steps into attempt 1
+
+    per_attempt = 10 ** 9
+    run_generation(FakeWorld(), demos, TASK, RunRequest(**{**req.__dict__, "output_dir": str(tmp_path / "count"),
+                                                            "attempts": 1}),
+                   write_report=False, should_stop=stop)
+    per_attempt, asked = len(asked), []  # checks in one whole attempt (+1: the run's own before it)
+    assert per_attempt > 10
+    env = FakeWorld()
+    run = run_generation(env, demos, TASK, RunRequest(**{**req.__dict__, "output_dir": str(tmp_path / "stopped")}),
+                         write_report=False, should_stop=stop)
+    assert run.stopped_early == "CANCELED" and run.attempts == 1, "attempt 1 was abandoned, not finished"
+    assert len(asked) == per_attempt + 6, "the stop took effect at the first check after it was asked"
+    with h5py.File(tmp_path / "stopped" / "demo.hdf5", "r") as f:
+        assert [int(f["data"][k].attrs["index"]) for k in f["data"]] == [0]
+    again = run_generation(env, demos, TASK, RunRequest(**{**req.__dict__, "output_dir": str(tmp_path / "again"),
+                                                           "first_index": 1, "attempts": 2}),
+                           write_report=False, keep_episodes=True)  # the same env, left mid-attempt
+    for a, b in zip(again.results, serial.results[1:]):
+        assert a.index == b.index
+        np.testing.assert_array_equal(a.episode.actions, b.episode.actions)

@@ -251,3 +251,21 @@ def test_a_wrist_at_its_limit_moves_in_the_null_space_before_the_retreat(setup):
     np.testing.assert_allclose(ee[:k], np.repeat(T0[None, :3, 3], k, 0), atol=1e-3)  # self-motion
     assert ee[-1, 2] - T0[2, 3] == pytest.approx(planner.retreat_distance, abs=3e-3)  # then 5 cm back
     assert not cm.in_collision(res.joint_path[b:b + 1], plate)[0]
+
+
+def test_a_goal_ik_cannot_back_out_of_straight_gets_a_dropped_approach_with_extras_only(setup):
+    """issue 19's planning bench: IK_FAILED goals (seed 1 #19) are reachable, but IK loses the 5 cm
+    line back from every goal solution. With extras the transit ends at the goal itself."""
+    kin, cm, _ = setup
+    cm.set_boxes([])
+    cm.set_point_cloud(np.empty((0, 3)))
+    start = np.array([0.2162, -0.3319, -0.3331, -2.2596, -0.3379, 2.0187, -2.1888])
+    goal = Pose(np.array([0.62168, 0.12312, 0.32122]), np.array([0.65664, -0.69719, -0.17697, 0.22680]))
+    paper = MotionPlanner(kin, IKSolver(kin, rng=0), cm, seed=1).plan(start, goal, Mode.TRANSIT, extras=False)
+    assert paper.status is PlanStatus.IK_FAILED and "straight approach" in paper.message
+    r = MotionPlanner(kin, IKSolver(kin, rng=0), cm, seed=1).plan(start, goal, Mode.TRANSIT)
+    assert r.ok, r.message
+    assert "approach dropped" in r.message or "approach shortened" in r.message
+    T = kin.fk(r.joint_path[-1])
+    assert np.linalg.norm(T[:3, 3] - goal.position) < 2e-3
+    assert not cm.in_collision(r.joint_path[-1])[0]

@@ -3,7 +3,7 @@
 The driver (this process) schedules attempt-index ranges over the workers, writes the shards they
 send back under <output>/shards/, and merges them in index order into demo.hdf5 / failed.hdf5 and
 report.md: the same dataset a serial run with the same seed writes (docs/distributed.md). Ctrl-C
-stops every worker after its current attempt; `--resume` with the same --output continues the run
+stops every worker, which abandons the attempt it is in at its next step; `--resume` with the same --output continues the run
 without re-running a finished index. Ray is imported only on this path.
 """
 from __future__ import annotations
@@ -33,7 +33,7 @@ def parse_domains(spec: str) -> tuple[int, ...]:
 
 
 class _StopOnSigint:
-    """First Ctrl-C: stop the run after each worker's current attempt; a second one: interrupt."""
+    """First Ctrl-C: stop the run (each worker abandons its attempt in flight); a second one: interrupt."""
 
     def __init__(self):
         self.reason = ""
@@ -43,7 +43,7 @@ class _StopOnSigint:
             if self.reason:
                 raise KeyboardInterrupt
             self.reason = "CANCELED"
-            print("\nstopping: every worker ends after its current attempt (Ctrl-C again to abort) ...",
+            print("\nstopping: every worker abandons the attempt it is in (Ctrl-C again to abort) ...",
                   file=sys.stderr)
         self._old = signal.signal(signal.SIGINT, on_sigint)
         return self

@@ -2,8 +2,8 @@
 
 The node is the Ray driver (core/distributed/run.py): it packs the run's source demos, starts the
 workers (in-process envs, or one node graph each in its own ROS_DOMAIN_ID: skillgen_ros/graph_worker.py),
-publishes feedback aggregated over the workers, and on a cancel tells every worker to stop after
-its current attempt. Parameters: distributed.perception (in-process workers' perception),
+publishes feedback aggregated over the workers, and on a cancel tells every worker to stop: each
+abandons the attempt it is in at its next step (a resumed run runs that index again). Parameters: distributed.perception (in-process workers' perception),
 distributed.domain_ids (graph workers lease their ROS domains from these, "A-B"; "" = 1-101).
 """
 from __future__ import annotations

@@ -4,8 +4,8 @@ Same request, same result as core/generation/session.run_generation: the merged 
 failed.hdf5 hold exactly the attempts a serial run would, in index order (only `timings` attributes
 differ). The loop keeps every live worker busy with one range, persists each finished range before
 counting it (shards.ShardStore), hands a dead worker's range to the next free worker, and on a stop
-(Ctrl-C, a canceled goal) tells every worker to end after its current attempt and keeps what they
-finished, so `--resume` continues from there.
+(Ctrl-C, a canceled goal) tells every worker to stop (the attempt in flight is abandoned at its next
+step, generation/attempt.AttemptAborted) and keeps what they finished, so `--resume` continues from there.
 """
 from __future__ import annotations
 

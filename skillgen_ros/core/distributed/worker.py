@@ -80,7 +80,7 @@ def make_runner(spec: WorkerSpec, req: RunRequest, worker: str):
 
 def _ignore_sigint() -> None:
     """A terminal's Ctrl-C reaches every process of its group, local Ray workers included; the
-    driver stops workers itself (after their current attempt), so they do not die of it."""
+    driver stops workers itself (run_range returns the finished prefix), so they do not die of it."""
     import signal
 
     try:
@@ -108,7 +108,8 @@ class RangeWorker:
         return os.getpid()
 
     def stop(self, run: str = "") -> None:
-        """End run `run`'s range after its current attempt; none of its ranges starts after this."""
+        """End run `run`'s range now (the attempt in flight is abandoned at its next step and not
+        returned); none of its ranges starts after this."""
         with self._lock:
             self._stopped.add(run)
 

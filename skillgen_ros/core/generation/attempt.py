@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Mapping, Protocol, Sequence
+from typing import Callable, Mapping, Protocol, Sequence
 
 import numpy as np
 
@@ -105,6 +105,17 @@ class AttemptResult:
     initiation_candidates_used: tuple[int, ...] = ()  # skillgen: initiation poses tried, per skill reached
 
 
+class AttemptAborted(Exception):
+    """A stop (a canceled goal, Ctrl-C, a distributed run's stop) abandoned the attempt in flight.
+
+    Not a SkillGenError, so no in-attempt handler turns it into a failure: the attempt is not
+    written, and a resumed run (or the next --first-index) runs its index again."""
+
+    def __init__(self, reason: str):
+        super().__init__(f"attempt abandoned: {reason}")
+        self.reason = reason
+
+
 class _Fail(Exception):
     def __init__(self, reason: FailureReason, message: str, goal_infeasible: bool = False):
         super().__init__(message)
@@ -116,8 +127,9 @@ class _Attempt:
     """State of one attempt in flight; methods follow Algorithm 1's steps."""
 
     def __init__(self, env: GenerationEnv, demos: Sequence[SourceDemo], task: TaskLike, method: str,
-                 index: int, seed: int, config: GenerationConfig):
+                 index: int, seed: int, config: GenerationConfig, should_abort: Callable[[], str] | None = None):
         self.env, self.demos, self.task, self.method, self.cfg = env, demos, task, method, config
+        self.should_abort = should_abort
         self.index = index
         self.scene_seed = scene_seed(seed, index)
         self.rng_select = attempt_rng(seed, index, "selection")
@@ -138,6 +150,10 @@ class _Attempt:
 
     # -- bookkeeping
     def _budget(self) -> None:
+        """Before every step and env call: the step and time limits, and a stop request."""
+        why = self.should_abort() if self.should_abort else ""
+        if why:
+            raise AttemptAborted(why)
         if len(self.rec) >= self.cfg.max_steps:
             raise _Fail(FailureReason.TIMEOUT, f"attempt exceeded {self.cfg.max_steps} control steps")
         if self.cfg.time_limit_s is not None and time.perf_counter() - self.t0 > self.cfg.time_limit_s:
@@ -341,8 +357,13 @@ class _Attempt:
 
 
 def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: TaskLike, method: str,
-                index: int, seed: int, config: GenerationConfig = GenerationConfig()) -> AttemptResult:
+                index: int, seed: int, config: GenerationConfig = GenerationConfig(),
+                should_abort: Callable[[], str] | None = None) -> AttemptResult:
     """Run attempt `index` of a run seeded `seed`; never raises for in-attempt failures.
+
+    should_abort() returning a reason abandons the attempt at its next step or env call: it raises
+    AttemptAborted and nothing of it is returned (the attempt depends only on (seed, index), so
+    running the index again later gives what it would have).
 
     Bad requests (unknown method, no source demos, a demo lacking a skill) raise SkillGenError
     before anything moves; failures while acting come back as `AttemptResult.reason`.
@@ -359,7 +380,7 @@ def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: Ta
                 d.skill(sk.index)  # raises ANNOTATION_MISSING_SKILL naming the demo
         if method == "mimicgen":
             check_subtasks(source_demos, task)
-    a = _Attempt(env, source_demos, task, method, index, seed, config)
+    a = _Attempt(env, source_demos, task, method, index, seed, config, should_abort)
     reason, message = FailureReason.OK, "task succeeded"
     try:
         if method == "replay_noise":

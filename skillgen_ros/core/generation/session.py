@@ -19,7 +19,7 @@ from typing import Callable, Sequence
 from ..errors import InvalidInputError, UnknownTaskError
 from ..skills.augmentation import AugmentationConfig
 from ..skills.segment import SourceDemo
-from .attempt import METHODS, AttemptResult, GenerationConfig, GenerationEnv, run_attempt
+from .attempt import METHODS, AttemptAborted, AttemptResult, GenerationConfig, GenerationEnv, run_attempt
 from .profile import DEFAULT_PROFILE, get_profile
 from .release import ReleaseConfig
 from .selection import ALIASES as SELECTION_ALIASES, make_strategy
@@ -148,7 +148,8 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
                    keep_episodes: bool = False) -> RunResult:
     """Run the request's attempts over `env`; returns counts, files and the per-attempt results.
 
-    should_stop() returning a non-empty reason ends the run cleanly after the current attempt;
+    should_stop() returning a non-empty reason ends the run at the running attempt's next step or env
+    call; that attempt is abandoned, not written (a resumed run runs its index again);
     before_attempt(k) runs before the k-th attempt of the run (e.g. to record only some of them).
     Each attempt's Episode is dropped from its result once the sink wrote it, except those the
     videos render (keep_episodes=True keeps them all, for tests that compare attempts' arrays).
@@ -174,7 +175,11 @@ def run_generation(env: GenerationEnv, demos: Sequence[SourceDemo], task, req: R
             index = req.first_index + k
             if before_attempt:
                 before_attempt(k)
-            r = run_attempt(env, demos, task, req.method, index, req.seed, cfg)
+            try:
+                r = run_attempt(env, demos, task, req.method, index, req.seed, cfg, should_abort=should_stop)
+            except AttemptAborted as e:  # a stop mid-attempt: that attempt is not written
+                out.stopped_early = e.reason
+                break
             sink.add(r)
             # the videos re-render the first video_attempts attempts and each outcome's first (clips.py)
             filmed = req.video_attempts > 0 and (k < req.video_attempts or r.reason.value not in outcomes)

@@ -172,7 +172,8 @@ class MotionPlanner(StartRepairs):
         (a box name or "table"), transfer only.
         extras: this project's start repairs beyond the paper's retreat -> transit -> approach (a hand
         on a fixture backs out along a retreat doubled to 10 cm; a grazing arm escapes along its null
-        space; a retreat IK cannot follow is shortened or preceded by a self-motion). False (the
+        space; a retreat IK cannot follow is shortened or preceded by a self-motion; an approach IK
+        cannot follow is shortened or dropped). False (the
         `paper` profile, core/generation/profile.py): a start that collides is START_IN_COLLISION,
         and a blocked retreat from a start in contact too.
         """
@@ -201,7 +202,7 @@ class MotionPlanner(StartRepairs):
             q0, escape, touching = self._start(c, q0, extras)
             rounds = self._goal_candidates(c, q0, target.matrix())
             retreat_path = np.vstack([escape[:-1], self._retreat(c, q0, touching, retreat, extras)])
-            approach_path = self._approach(c, rounds, approach)
+            approach_path = self._approach(c, rounds, approach, extras)
             transit = self._transit(c, mode, retreat_path[-1], approach_path[0], timeout)
         except _PlanFailure as e:
             return c.fail(e.status, str(e))
@@ -291,10 +292,12 @@ class MotionPlanner(StartRepairs):
         finally:
             c.timings["retreat"] = time.perf_counter() - t
 
-    def _approach(self, c: "_Call", rounds, approach: bool) -> np.ndarray:
-        """The approach, computed backwards from each goal candidate until one is clear."""
+    def _approach(self, c: "_Call", rounds, approach: bool, extras: bool = True) -> np.ndarray:
+        """The approach, computed backwards from each goal candidate until one is clear. With extras,
+        when IK can follow no candidate's line back (the arm at full reach, the wrist at a limit),
+        the approach is shortened to the part IK follows, or dropped (_short_approach)."""
         t = time.perf_counter()
-        blocked, kinematic, tried = 0, "", []
+        blocked, kinematic, tried, unfollowed = 0, "", [], []
         try:
             for next_round in rounds:
                 for qg in next_round():
@@ -306,6 +309,7 @@ class MotionPlanner(StartRepairs):
                             path = cartesian_line(self.kin, self.ik, qg, -self.approach_distance)[::-1]
                         except CartesianPathError as e:
                             kinematic = f"approach: {e}"
+                            unfollowed.append(qg)
                             continue
                     else:
                         path = qg[None]
@@ -313,6 +317,9 @@ class MotionPlanner(StartRepairs):
                         blocked += 1
                         continue
                     return path
+            path = self._short_approach(c, unfollowed, kinematic) if extras else None
+            if path is not None:
+                return path
         finally:
             c.timings["approach"] = time.perf_counter() - t
         if not tried:
@@ -321,6 +328,20 @@ class MotionPlanner(StartRepairs):
             raise _PlanFailure(PlanStatus.GOAL_IN_COLLISION, f"approach blocked for {blocked} of "
                                f"{len(tried)} collision-free goal IK solutions")
         raise _PlanFailure(PlanStatus.IK_FAILED, f"no goal IK solution admits the straight approach ({kinematic})")
+
+    def _short_approach(self, c: "_Call", candidates, why: str) -> np.ndarray | None:
+        """The first collision-free of: the part of a candidate's line IK follows, else the goal alone
+        (the transit then ends at the goal; still collision-checked, only not straight)."""
+        for qg in candidates:
+            try:
+                path = cartesian_line(self.kin, self.ik, qg, -self.approach_distance, partial=True)[::-1]
+                note = "approach shortened to where IK held the line"
+            except CartesianPathError:
+                path, note = qg[None], "approach dropped"
+            if not c.collides(path[:1])[0] and self._segment_free(path, c.edge_free, c.allow_goal):
+                c.notes.append(f"{why}; {note}")
+                return path
+        return None
 
     def _transit(self, c: "_Call", mode: Mode, q_a, q_b, timeout: float) -> np.ndarray:
         """RRT-Connect from the retreat's end to the approach's start, in what is left of the timeout."""

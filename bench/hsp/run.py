@@ -28,6 +28,12 @@ Datasets and checkpoints live under --work (out/bench_hsp, not in git).
         --chunk-steps 4500 --datasets-from bench/results/hsp.json --out bench/results/hsp_h200.json
     # the data-scaling row: Square D2, HSP-Class, 200 demos
     .venv/bin/python bench/hsp/run.py --cells Square/D2 --methods HSP-Class --demos 200 --out bench/results/hsp_200demos.json
+    # two processes on 2 cores (--threads 1 each): the HSP methods into hsp.json, the baseline beside it, then merged
+    .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods HSP-TAMP HSP-Class HSP-Reg --budget-minutes 25 --threads 1
+    .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods MimicGen-BC --budget-minutes 25 --threads 1 \
+        --out bench/results/hsp_bc_part.json
+    .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods MimicGen-BC --budget-minutes 25 \
+        --merge-from bench/results/hsp_bc_part.json
     # after a fix in deployment: evaluate the kept checkpoints again (the training records stay)
     .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods HSP-TAMP --reevaluate "TAMP goal fix"
     # smoke (seconds of training, 2 rollouts)
@@ -290,6 +296,29 @@ def summary(store: Store) -> dict:
     return {"average_percent": avg, "hsp_class_minus_bc_d1_d2_points": gap, "cells_done": sorted(store.data["cells"])}
 
 
+def merge_from(src: Path, dst: Path, a) -> int:
+    """Another process's records of the same protocol (the same command but --methods, --out, --threads)."""
+    other, mine = json.loads(src.read_text()), json.loads(dst.read_text())
+    skip = ("out", "threads", "merge_from")
+    differ = {k for k in set(other["protocol"]) | set(mine["protocol"]) if k not in skip
+              and other["protocol"].get(k) != mine["protocol"].get(k)}
+    if differ:
+        raise SystemExit(f"{src} ran another protocol ({sorted(differ)}); not merged")
+    for cell in a.cells:
+        o, c = other["cells"][cell], mine["cells"].setdefault(cell, {"datasets": {}, "networks": {}, "methods": {}})
+        for m in a.methods:
+            net = NETWORK[m]
+            c["methods"][m] = {**o["methods"][m], "merged_from": str(src.name)}
+            c["datasets"][net], c["networks"][net] = o["datasets"][net], o["networks"][net]
+        _update_table(c, METHODS)
+    store = Store.__new__(Store)
+    store.path, store.data = dst, mine
+    mine["summary"] = summary(store)
+    store.save()
+    print(f"merged {a.methods} of {a.cells} from {src} into {dst}")
+    return 0
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--cells", nargs="+", default=list(CELLS))
@@ -315,6 +344,9 @@ def main(argv=None) -> int:
                    help="reuse the datasets another results file generated (a new --out for another size or budget)")
     p.add_argument("--reevaluate", metavar="REASON", default="",
                    help="evaluate the kept checkpoints of the cells' methods again (after a deploy fix; REASON is recorded)")
+    p.add_argument("--merge-from", metavar="JSON", default="",
+                   help="copy --methods' records for --cells from another results file (the same protocol run as a "
+                        "second process, e.g. MimicGen-BC beside the HSP methods) into --out, then stop")
     a = p.parse_args(argv)
     from skillgen_ros.core.tasks import TASK_NAMES
 
@@ -323,6 +355,8 @@ def main(argv=None) -> int:
         p.error(f"unknown cells {unknown}; e.g. {CELLS[0]}")
     Path(a.work).mkdir(parents=True, exist_ok=True)
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    if a.merge_from:
+        return merge_from(Path(a.merge_from), Path(a.out), a)
     store = Store(Path(a.out), a)
     if a.datasets_from:  # another network size or budget on the same generated data
         other = json.loads(Path(a.datasets_from).read_text()).get("cells", {})

@@ -141,3 +141,19 @@ def reg_target_rows(data: dict) -> list[str]:
                      f"({100 * lo:.0f}-{100 * hi:.0f}%; failures {e['failures']})")
     return ["- HSP-Reg's target (bench/results/hsp_reg_target.json; I retrained alone for the checkpoint's own "
             "steps, pi and T unchanged): " + "; ".join(parts) + "."]
+
+
+def observation_rows(old: dict, new: dict) -> list[str]:
+    """The same protocol before and after the networks read each object's pose in the hand frame
+    (`object_to_eef`; docs/hsp.md "Observations"): best per method, world poses only -> both."""
+    out = []
+    for name, c in new.get("cells", {}).items():
+        o = old.get("cells", {}).get(name, {})
+        parts = [f"{m} {o['methods'][m]['best']['successes']}/{o['methods'][m]['best']['rollouts']} -> "
+                 f"{c['methods'][m]['best']['successes']}/{c['methods'][m]['best']['rollouts']}"
+                 for m in METHODS if "best" in o.get("methods", {}).get(m, {}) and "best" in c["methods"].get(m, {})]
+        if parts:
+            out.append(f"- {name}, world object poses only (bench/results/hsp_absolute_obs.json, before 2026-12-03) -> "
+                       f"with each object's pose in the hand frame (robomimic's object state), same protocol: "
+                       + ", ".join(parts) + ". The rows below were measured with world poses only.")
+    return out

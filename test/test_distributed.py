@@ -255,6 +255,13 @@ def test_the_local_ray_instance_listens_on_loopback_only(pool):
                 assert addr.is_loopback, f"{proc.name()} (pid {proc.pid}) listens on {ip}"
 
 
+def test_workers_run_at_the_driver_s_priority(pool):
+    """Ray starts workers at nice 15; beside a training or a suite they starved ~28x (ray_pool)."""
+    pids = {s.pid for s in pool.statuses(timeout=60)}
+    assert len(pids) == 2
+    assert {os.getpriority(os.PRIO_PROCESS, pid) for pid in pids} == {os.getpriority(os.PRIO_PROCESS, 0)}
+
+
 def test_ctrl_c_then_resume_on_the_command_line(tmp_path):
     """Ctrl-C (SIGINT to the terminal's process group) stops the run cleanly; --resume finishes it
     without running a journaled index again (every journal line names new indices)."""

@@ -36,7 +36,7 @@ def evaluate_distributed(checkpoint_path: str, task: str, variant: str | None = 
                          demos_dir: str = "bags", first_index: int = 0, perception: str = "ground_truth", config=None,
                          on_range: Callable[[int, EvalSummary], None] | None = None, max_chunk: int = 8) -> EvalSummary:
     """`rollouts` rollouts on `workers` Ray workers (a local instance, or the cluster at `address`)."""
-    from .ray_pool import connect
+    from .ray_pool import WORKER_RUNTIME_ENV, connect
 
     started = connect(address, workers)
     import ray
@@ -48,7 +48,7 @@ def evaluate_distributed(checkpoint_path: str, task: str, variant: str | None = 
         demos = ray.put(pack_dir(task_dir) if os.path.isdir(task_dir) else b"")
         kw = {"task": task, "variant": variant, "mode": mode, "seed": seed, "perception": perception,
               **({"config": config} if config is not None else {})}
-        remote = ray.remote(num_cpus=1, max_retries=3)(_rollout_range)
+        remote = ray.remote(num_cpus=1, max_retries=3, runtime_env=WORKER_RUNTIME_ENV)(_rollout_range)
         size = max(1, min(max_chunk, math.ceil(rollouts / (2 * workers))))
         refs = {remote.remote(ckpt, demos, i, min(size, first_index + rollouts - i), kw): i
                 for i in range(first_index, first_index + rollouts, size)}

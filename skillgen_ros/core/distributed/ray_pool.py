@@ -21,6 +21,11 @@ from .shards import ShardPayload
 
 ACTOR_RESTARTS = 3  # per worker; a worker lost more often than this is dropped from the run
 RESTART_TIMEOUT_S = 600.0  # a lost worker not back (env rebuilt) within this is dropped
+# Ray starts its worker processes at nice 15. Beside anything at the user's priority (another
+# training, a test suite) they then get ~1/28 of a core each: in-process attempts took 33-42 s
+# instead of 1.5 s (bench/distributed --cancel, 2026-12-03). Our workers are the job, not
+# background work: run them at the driver's priority, as Ray's own job supervisor does.
+WORKER_RUNTIME_ENV = {"env_vars": {"RAY_worker_niceness": "0"}}
 _ADDRESS = re.compile(r"^(?:ray://)?(\[[0-9a-fA-F:]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
 
 
@@ -100,6 +105,7 @@ class RayPool:
 
         self._ray = ray
         cls = ray.remote(RangeWorker).options(num_cpus=1, max_restarts=ACTOR_RESTARTS, max_task_retries=0,
+                                              runtime_env=WORKER_RUNTIME_ENV,
                                               max_concurrency=4)
         self._tar = ray.put(demos_tar)  # held for the pool's life: a restarted actor reads it again
         self.slots = [_Slot(f"w{i}", cls.remote(f"w{i}", spec, req, self._tar)) for i in range(workers)]

@@ -201,23 +201,29 @@ def test_every_error_is_a_skillgen_error(tmp_path):
 
 
 @pytest.mark.parametrize("task", ["Square", "PickPlace", "Threading"])
-def test_a_shipped_demo_still_replays_in_the_current_sim(task):
-    """Guard against sim changes that silently invalidate the shipped bags (full check: bench/source_demos)."""
+def test_shipped_demos_still_replay_in_the_current_sim(task):
+    """Guard against sim changes that silently invalidate the shipped bags (full check: bench/source_demos).
+
+    Two of the first three must replay: an open-loop replay of a contact-rich demo is not bit-exact
+    across CPUs (numba and BLAS pick kernels per CPU). Threading demo_00 replays on the machines the
+    demos were made on and fails on an AMD EPYC (znver5) one, where the other 9 of 10 still replay."""
     from skillgen_ros.core.geometry import Pose
     from skillgen_ros.core.sim import SimWorld
 
-    path = shipped(task)[0]
-    reader = B.open_bag(path)
-    scene, arrays = B.read_scene(reader), B.read_demo_arrays(path, reader)
     world = SimWorld()
+    replayed = {}
     try:
-        world.reset(scene.task, scene.variant, scene.seed)
-        for p, q, g in zip(arrays.action_positions, arrays.action_quaternions, arrays.gripper):
-            world.step(Pose(p, q), float(g))
-        assert world.task_success(), (f"{path} no longer replays to success: remake the demos with "
-                                      "`skillgen demos make --task all --force`")
+        for path in shipped(task)[:3]:
+            reader = B.open_bag(path)
+            scene, arrays = B.read_scene(reader), B.read_demo_arrays(path, reader)
+            world.reset(scene.task, scene.variant, scene.seed)
+            for p, q, g in zip(arrays.action_positions, arrays.action_quaternions, arrays.gripper):
+                world.step(Pose(p, q), float(g))
+            replayed[str(path)] = world.task_success()
     finally:
         world.close()
+    assert sum(replayed.values()) >= 2, (f"shipped demos no longer replay to success ({replayed}): remake them "
+                                         "with `skillgen demos make --task all --force`")
 
 
 def test_the_demo_cache_parses_a_bag_set_once_and_again_when_a_file_changes(tmp_path):

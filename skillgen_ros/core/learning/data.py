@@ -152,15 +152,16 @@ def reg_target(d: DemoArrays, a: int, kind: str = "nominal") -> np.ndarray:
 def read_demos(path: str, names: Sequence[str], keys: Sequence[str]) -> list[DemoArrays]:
     """Each named demo's obs `keys` (DERIVED_KEYS computed from the stored ones), actions and labels."""
     out = []
-    stored = [k for k in keys if k not in DERIVED_KEYS]
+    derive = any(k in DERIVED_KEYS for k in keys)
+    # each stored key read once: the requested ones, plus what the derived ones are computed from
+    stored = dict.fromkeys([k for k in keys if k not in DERIVED_KEYS] + (list(DERIVED_FROM) if derive else []))
     with h5py.File(path, "r", locking=False) as f:
         for n in names:
             g = f["data"][n]
             try:
                 obs = {k: g["obs"][k][()] for k in stored}
-                if len(stored) < len(keys):
-                    obs = {k: v for k, v in add_derived({**{k: g["obs"][k][()] for k in DERIVED_FROM}, **obs}).items()
-                           if k in keys}
+                if derive:
+                    obs = {k: v for k, v in add_derived(obs).items() if k in keys}
                 out.append(DemoArrays(obs, g["actions"][()].astype(np.float32),
                                       g["labels/mp_step"][()], g["labels/source_demo"][()],
                                       g["labels/initiation_target"][()],

@@ -313,7 +313,7 @@ class MotionPlanner(StartRepairs):
                             continue
                     else:
                         path = qg[None]
-                    if c.collides(path[:1])[0] or not self._segment_free(path, c.edge_free, c.allow_goal):
+                    if not self._approach_clear(c, path):
                         blocked += 1
                         continue
                     return path
@@ -329,6 +329,10 @@ class MotionPlanner(StartRepairs):
                                f"{len(tried)} collision-free goal IK solutions")
         raise _PlanFailure(PlanStatus.IK_FAILED, f"no goal IK solution admits the straight approach ({kinematic})")
 
+    def _approach_clear(self, c: "_Call", path: np.ndarray) -> bool:
+        """An approach's first configuration is free without allowances, the rest with the goal's."""
+        return not c.collides(path[:1])[0] and self._segment_free(path, c.edge_free, c.allow_goal)
+
     def _short_approach(self, c: "_Call", candidates, why: str) -> np.ndarray | None:
         """The first collision-free of: the part of a candidate's line IK follows, else the goal alone
         (the transit then ends at the goal; still collision-checked, only not straight)."""
@@ -338,7 +342,7 @@ class MotionPlanner(StartRepairs):
                 note = "approach shortened to where IK held the line"
             except CartesianPathError:
                 path, note = qg[None], "approach dropped"
-            if not c.collides(path[:1])[0] and self._segment_free(path, c.edge_free, c.allow_goal):
+            if self._approach_clear(c, path):
                 c.notes.append(f"{why}; {note}")
                 return path
         return None

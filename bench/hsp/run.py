@@ -93,9 +93,14 @@ class Store:
         return self.data["cells"].setdefault(name, {"datasets": {}, "networks": {}, "methods": {}})
 
     def save(self) -> None:
-        tmp = self.path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(self.data, indent=2))
-        os.replace(tmp, self.path)
+        write_json(self.path, self.data)
+
+
+def write_json(path: Path, data: dict) -> None:
+    """Atomically: an interrupted write leaves the previous results."""
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=2))
+    os.replace(tmp, path)
 
 
 def rerun_command(cell: str, a) -> str:
@@ -286,14 +291,14 @@ def run_cell(store: Store, cell: str, a) -> None:
     store.save()
 
 
-def summary(store: Store) -> dict:
+def summary(data: dict) -> dict:
     """Per-method averages over the cells done, and HSP-Class minus BC on the D1/D2 cells."""
-    rates = {m: {n: c["methods"][m]["best"]["success_rate"] for n, c in store.data["cells"].items()
+    rates = {m: {n: c["methods"][m]["best"]["success_rate"] for n, c in data["cells"].items()
                  if "best" in c["methods"].get(m, {})} for m in METHODS}
     avg = {m: 100 * sum(v.values()) / len(v) for m, v in rates.items() if v}
     hard = [n for n in rates["HSP-Class"] if n.split("/")[1] in ("D1", "D2") and n in rates["MimicGen-BC"]]
     gap = (100 * sum(rates["HSP-Class"][n] - rates["MimicGen-BC"][n] for n in hard) / len(hard)) if hard else None
-    return {"average_percent": avg, "hsp_class_minus_bc_d1_d2_points": gap, "cells_done": sorted(store.data["cells"])}
+    return {"average_percent": avg, "hsp_class_minus_bc_d1_d2_points": gap, "cells_done": sorted(data["cells"])}
 
 
 def merge_from(src: Path, dst: Path, a) -> int:
@@ -311,10 +316,8 @@ def merge_from(src: Path, dst: Path, a) -> int:
             c["methods"][m] = {**o["methods"][m], "merged_from": str(src.name)}
             c["datasets"][net], c["networks"][net] = o["datasets"][net], o["networks"][net]
         _update_table(c, METHODS)
-    store = Store.__new__(Store)
-    store.path, store.data = dst, mine
-    mine["summary"] = summary(store)
-    store.save()
+    mine["summary"] = summary(mine)
+    write_json(dst, mine)
     print(f"merged {a.methods} of {a.cells} from {src} into {dst}")
     return 0
 
@@ -366,7 +369,7 @@ def main(argv=None) -> int:
     for cell in a.cells:
         print(f"== {cell}", flush=True)
         (reevaluate_cell if a.reevaluate else run_cell)(store, cell, a)
-        store.data["summary"] = summary(store)
+        store.data["summary"] = summary(store.data)
         store.save()
     print(json.dumps(store.data["summary"], indent=2))
     return 0

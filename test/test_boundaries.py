@@ -245,14 +245,14 @@ BAD_GOALS = {
 def test_generate_and_run_attempt_reject_bad_goals_and_keep_serving(nodes, tmp_path):
     _, iso, graphs, _ = nodes
     for case, (kw, reason) in BAD_GOALS.items():
-        accepted, res = iso.goal(Generate, "generate", _generate(**kw), probe=Generate.Goal(task=""))
+        accepted, res = iso.goal(Generate, "generate", _generate(**kw), probe=Generate.Goal(task=""), repeat=True)
         assert accepted and res is not None, case
         assert not res.accepted and res.reason and res.reason != "INTERNAL_ERROR", (case, res.reason, res.message)
         assert reason is None or res.reason == reason, (case, res.reason, res.message)
         fields = RunAttempt.Request.get_fields_and_field_types()
         req = RunAttempt.Request(**{**dict(task="Square", variant="D0", method="skillgen", augment_translation=-1.0,
                                            augment_rotation_deg=-1.0), **{k: v for k, v in kw.items() if k in fields}})
-        r = iso.service(RunAttempt, "run_attempt", req)
+        r = iso.service(RunAttempt, "run_attempt", req, repeat=True)
         assert r is not None and not r.accepted and r.reason != "INTERNAL_ERROR", (case, r and r.message)
         if reason is not None and all(k in fields for k in kw):  # RunAttempt has no attempts/video_attempts
             assert r.reason == reason, (case, r.reason, r.message)

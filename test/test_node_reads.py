@@ -3,7 +3,7 @@ from std_msgs.msg import Int32
 
 from conftest import wait_for
 from skillgen_ros.nodes.feedback import FeedbackThrottle
-from skillgen_ros.nodes.latest import LatestMessage
+from skillgen_ros.nodes.latest import LatestMessage, close_all
 
 
 def test_feedback_throttle_limits_rate_but_always_sends_the_final_step():
@@ -54,3 +54,16 @@ def test_latest_message_follows_its_owners_remaps(ros_node):
     finally:
         reader.destroy()
         owner.destroy_node()
+
+
+def test_close_all_shuts_every_open_reader_down_once(ros_node):
+    """runtime.run_nodes calls close_all before rclpy.shutdown: a reader's executor left open past
+    the context printed an InvalidHandle traceback from Executor.__del__ at exit (a CI failure)."""
+    readers = [LatestMessage(ros_node, Int32, f"numbers_{i}") for i in range(2)]
+    names = [r._node.get_name() for r in readers]
+    assert wait_for(lambda: set(names) <= set(ros_node.get_node_names()), 10)
+    close_all()
+    assert all(r._exec._sigint_gc is None for r in readers)  # what Executor.__del__ would touch
+    assert wait_for(lambda: not set(names) & set(ros_node.get_node_names()), 10)
+    close_all()  # nothing left open: a second call is a no-op
+    readers[0].destroy()  # and so is destroying a reader already closed

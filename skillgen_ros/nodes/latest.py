@@ -17,6 +17,7 @@ from __future__ import annotations
 import itertools
 import threading
 import time
+import weakref
 
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -24,6 +25,7 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile
 
 _ids = itertools.count()
+_LIVE: "weakref.WeakSet[LatestMessage]" = weakref.WeakSet()  # readers close_all() shuts down
 
 
 class LatestMessage:
@@ -41,6 +43,8 @@ class LatestMessage:
         self._lock = threading.Lock()  # one puller at a time
         self.msg = None
         self.count = 0  # messages taken so far
+        self._closed = False
+        _LIVE.add(self)
 
     def _on_msg(self, msg) -> None:
         self.msg = msg
@@ -75,8 +79,23 @@ class LatestMessage:
         return self.wait_for(lambda _m: self.count > count, timeout)
 
     def destroy(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        _LIVE.discard(self)
         self._exec.shutdown()
         self._node.destroy_node()
+
+
+def close_all() -> None:
+    """Shut down every reader still open; runtime.run_nodes calls it before rclpy.shutdown. An
+    executor left open past shutdown prints an InvalidHandle traceback from Executor.__del__ when
+    it is collected (its SIGINT guard condition died with the context): CI once failed on that."""
+    for reader in list(_LIVE):
+        try:
+            reader.destroy()
+        except Exception:  # noqa: BLE001 - the context may already be shutting down
+            pass
 
 
 def wait_future(fut, timeout: float) -> bool:

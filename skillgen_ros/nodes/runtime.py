@@ -24,6 +24,7 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, Si
 
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.nodes.entry import quiet_stop_signals
+from skillgen_ros.nodes.latest import close_all as close_readers
 
 
 def _fail(name: str, reason: str, msg: str) -> int:
@@ -93,6 +94,7 @@ def run_nodes(factories: list[Callable[[], "rclpy.node.Node"]], args=None, threa
                 n.destroy_node()
             except Exception:  # noqa: BLE001 - context may already be gone at shutdown
                 pass
+        close_readers()  # nodes/latest.py: their private executors must not outlive the context
         if rclpy.ok():
             rclpy.shutdown()
     return 0

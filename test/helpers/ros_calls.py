@@ -7,7 +7,7 @@ import contextlib
 import time
 from pathlib import Path
 
-from skillgen_ros.answered import first_answer, sleep_until_done
+from skillgen_ros.answered import detached, first_answer, sleep_until_done
 
 GRAPHS = Path(__file__).parent / "boundary_graphs.yaml"
 BAGS = str(Path(__file__).resolve().parents[2] / "bags")
@@ -43,9 +43,10 @@ class Calls:
     def _name(self, name: str) -> str:
         return f"{self.ns}/{name}" if self.ns else name
 
-    def service(self, srv_type, name: str, request, timeout: float = 30.0, probe=None):
+    def service(self, srv_type, name: str, request, timeout: float = 30.0, probe=None, repeat: bool = False):
         """The response to `request` (None after `timeout`); `probe` (a harmless request) is sent
-        until answered the first time the client is used."""
+        until answered the first time the client is used. `repeat`: the request itself is harmless
+        to repeat (one the server refuses), so it is resent every 10 s (see goal())."""
         from rclpy.client import Client
 
         key = (srv_type, name)
@@ -56,12 +57,17 @@ class Calls:
             if probe is not None:
                 assert first_answer(lambda: cli.call_async(probe), sleep_until_done, 60.0) is not None
             self._clients[key] = cli
+        if repeat:
+            return first_answer(lambda: cli.call_async(request), sleep_until_done, timeout, each=10.0)
         fut = cli.call_async(request)
         sleep_until_done(fut, timeout)
         return fut.result() if fut.done() else None
 
-    def goal(self, action_type, name: str, goal, timeout: float = 60.0, probe=None):
-        """(accepted, result) for one goal; result None if not accepted or not done in `timeout`."""
+    def goal(self, action_type, name: str, goal, timeout: float = 60.0, probe=None, repeat: bool = False):
+        """(accepted, result) for one goal; result None if not accepted or not done in `timeout`.
+        `repeat`: the goal is harmless to repeat (one the server refuses at once), so it is resent
+        every 10 s until answered. Under CI load a goal response was once not seen in 60 s even on
+        a matched client (rmw_fastrtps drops a reply it cannot deliver in 100 ms: answered.py)."""
         from rclpy.action import ActionClient
 
         key = (action_type, name)
@@ -70,14 +76,19 @@ class Calls:
             ac = ActionClient(self.node, action_type, self._name(name))
             assert ac.wait_for_server(timeout_sec=60.0), f"action {name} never appeared"
             if probe is not None:  # an empty-task goal: rejected at once, runs nothing
-                assert first_answer(lambda: ac.send_goal_async(probe), sleep_until_done, 60.0) is not None
+                assert first_answer(lambda: detached(ac.send_goal_async(probe)), sleep_until_done, 60.0) is not None
             self._clients[key] = ac
         end = time.monotonic() + timeout
-        fut = ac.send_goal_async(goal)
-        sleep_until_done(fut, timeout)
-        if not fut.done():
-            return None, None
-        handle = fut.result()
+        if repeat:
+            handle = first_answer(lambda: detached(ac.send_goal_async(goal)), sleep_until_done, timeout, each=10.0)
+            if handle is None:
+                return None, None
+        else:
+            fut = ac.send_goal_async(goal)
+            sleep_until_done(fut, timeout)
+            if not fut.done():
+                return None, None
+            handle = fut.result()
         if not handle.accepted:
             return False, None
         # get_result is safe to repeat: resent every 5 s, so a lost answer (a result client not yet

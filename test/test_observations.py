@@ -191,6 +191,26 @@ def test_beliefs_along_a_skill_follow_the_hand_and_stay_where_released():
     assert np.all(xs[:CLOSE_PERIODS + 1] == 0.0) and np.all(np.diff(xs[CLOSE_PERIODS + 1:]) > 0.009)
 
 
+def test_after_a_skill_the_graph_holds_what_the_hand_closed_on_and_drops_what_it_opened_on():
+    """GraspTracker.after_skill (RosGraphEnv after each replay_skill): the grasp is taken CLOSE_PERIODS
+    after the close command; an open ending lets go where the opening command led."""
+    from skillgen_ros.core.generation.grasp import CLOSE_PERIODS, GraspTracker
+    from skillgen_ros.core.geometry import Pose
+
+    n = CLOSE_PERIODS + 4
+    ee = np.array([[0.01 * k, 0, 0.2, 0, 0, 0, 1] for k in range(n)])
+    t = GraspTracker()
+    cube = {"cube": Pose([0.0, 0, 0], [0, 0, 0, 1])}
+    assert t.after_skill([-1, -1] + [1] * (n - 2), ee, "cube", cube) == {} and t.holding() == "cube"
+    # held from ee[2 + CLOSE_PERIODS]: the cube is that far behind the hand, 0.2 m below it
+    np.testing.assert_allclose(t.object_in_ee("cube")[:3, 3], [-0.01 * (2 + CLOSE_PERIODS), 0, -0.2], atol=1e-12)
+    assert t.after_skill([1] * n, ee, "other", cube) == {} and t.holding() == "cube"  # still closed: kept
+    left = t.after_skill([1, 1, -1] + [-1] * (n - 3), ee, "cube", cube)
+    assert t.holding() is None  # let go where the opening command (step 2) led: ee[3]
+    np.testing.assert_allclose(left["cube"].position, [0.03 - 0.01 * (2 + CLOSE_PERIODS), 0, 0.0], atol=1e-12)
+    assert t.after_skill([1] * n, ee, "unseen", cube) == {} and t.holding() is None  # no estimate: nothing held
+
+
 def test_articulated_joint_values_are_recorded_per_object(tmp_path):
     """obs/<id>_joints: the lid angle at every step (NaN where a step had none); no key without joints."""
     from dataclasses import replace

@@ -257,3 +257,27 @@ def test_gripper_open_is_a_move_close_is_a_grasp(world):
 def test_bad_gripper_forces_rejected(forces):
     with pytest.raises(InvalidInputError, match="gripper_hold_force"):
         SimWorld(gripper_force=forces[0], gripper_hold_force=forces[1])
+
+
+def test_an_active_trajectory_decides_at_its_end_and_waits_settle_limit_for_the_goal():
+    """control.ActiveTrajectory (SimWorld.step_trajectory's verdict): undecided before the end, SUCCESSFUL
+    within goal_tolerance, GOAL_TOLERANCE_VIOLATED only once settle_limit has passed without it."""
+    from skillgen_ros.core.sim.commands import validate_trajectory
+    from skillgen_ros.core.sim.control import ActiveTrajectory, TrajectorySampler
+
+    from skillgen_ros.core.robot import Q_HOME
+
+    q0 = np.array(Q_HOME)
+    q1 = q0 + 0.1
+    traj = validate_trajectory(ARM_JOINTS, [1.0], q1[None], q_now=q0)
+    tr = ActiveTrajectory(TrajectorySampler(traj), goal_tolerance=0.01, settle_limit=0.5)
+    tr.t = 0.5
+    assert tr.check_goal(q1) is None and tr.progress == pytest.approx(0.5)  # not at the end yet
+    tr.t = 1.2
+    assert tr.check_goal(q1 + 0.05) is None  # 0.05 rad off, still settling
+    done = tr.check_goal(q1 + 0.005)
+    assert done.code == TrajectoryCode.SUCCESSFUL and done.final_error == pytest.approx(0.005)
+    late = ActiveTrajectory(TrajectorySampler(traj), goal_tolerance=0.01, settle_limit=0.5)
+    late.t = 1.5
+    res = late.check_goal(q1 + 0.05)
+    assert res.code == TrajectoryCode.GOAL_TOLERANCE_VIOLATED and late.progress == 1.0

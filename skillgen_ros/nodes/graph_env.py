@@ -8,17 +8,10 @@ it asks the driver for fresh camera frames (`capture_cameras`) and has perceptio
 older than them, as SimGenerationEnv renders at that moment; a reset's own frames serve the first
 estimate. The run's videos are re-rendered from the recorded arrays after the run (core/dataset/render.py).
 Each call also says on `run/{attempt,skill,stage}` where the attempt is (run_state.py), for Foxglove.
-Observations come from `joint_states` (arm and finger joints; the EE pose is FK through
-pinocchio, within 1e-8 m of the driver's `ee_pose`) and the same period's `ee_wrench`,
-read on demand (nodes/latest.py) so that the driver's hundreds of periods a second in lockstep do
-not wake this node. Observations carry the state's stamp and the robot's belief of the object
-poses (latest estimates, a grasped object moved with the hand); the sim's true poses and articulated
-objects' joint values come from the driver's `state_history` (one call per motion, and one per attempt
-for the rest, by stamp: `true_object_poses`, `true_object_joints`), never from a topic reader in the
-control loop. Motion-planner steps are the
-measured states of the driver's trajectory periods (state_history); a driver without that service
-(a real robot) gets the planned trajectory sampled at the control rate (commanded states, FK
-through pinocchio). Skill steps are the measured states skill_replay saw.
+Observations come from `joint_states` (FK through pinocchio) and `ee_wrench`, read on demand
+(nodes/latest.py); the sim's true poses and joint values come from the driver's `state_history` by
+stamp, never from a topic reader in the control loop (docs/architecture.md: performance notes,
+and "Changes from the starting design").
 Every call has a timeout; a node that does not answer becomes a failure with a reason
 (PERCEPTION_FAILED, PLAN_FAILED, SKILL_FAILED, TIMEOUT) instead of a hang, and the run goes on:
 before each attempt a server seen before that has gone (a node killed and being respawned) is
@@ -44,7 +37,7 @@ from skillgen_interfaces.srv import (CaptureCameras, EstimatePoses, LoadDemos, P
 from skillgen_ros.answered import detached, first_answer
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
-from skillgen_ros.core.generation.grasp import CLOSE_PERIODS, GraspTracker, beliefs_along, grasp_step
+from skillgen_ros.core.generation.grasp import GraspTracker, beliefs_along
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
@@ -365,20 +358,14 @@ class RosGraphEnv(GraphCalls):
         self._moved = True
         result = self._wait_action(self.replay_ac.send_goal_async(goal), self.t["skill"])
         r = result.result
-        n = int(r.steps)
-        steps = {
-            "actions": np.asarray(r.actions, float).reshape(n, 7),
-            "actions_abs": np.asarray(r.actions_abs, float).reshape(n, 8),
-            "ee_poses": np.asarray(r.ee_poses, float).reshape(n, 7),
-            "joint_positions": np.asarray(r.joint_positions, float).reshape(n, 7),
-            "gripper_widths": np.asarray(r.gripper_widths, float).reshape(n),
-            "recovery": np.asarray(r.recovery_steps, bool).reshape(n),
-        }
+        steps, n = replay_steps(r), int(r.steps)
         if n and len(r.stamps) == n and self.history.ready():
             steps.update(self.history.skill_periods([ns(t) for t in r.stamps]))
         if self.observation_source == "estimate":  # the belief is what such a dataset records
             steps["object_poses"] = self._beliefs_along(steps)
-        self._track_grasp(steps)
+        # after a skill: a hand closed on the skill's object holds it rigidly; one let go stays where left
+        self._estimates.update(self.grasps.after_skill(steps["actions_abs"][:, 7], steps["ee_poses"],
+                                                       self._skill_object, self._estimates))
         return steps, bool(r.success), r.reason, r.message
 
     def _beliefs_along(self, steps) -> list[dict]:
@@ -387,19 +374,6 @@ class RosGraphEnv(GraphCalls):
         return beliefs_along(self._estimates, None if held is None else (held, self.grasps.object_in_ee(held)),
                              self._skill_object, [Pose.from_array(e).matrix() for e in steps["ee_poses"]],
                              steps["actions_abs"][:, 7])
-
-    def _track_grasp(self, steps) -> None:
-        """After a skill: if the hand closed on the skill's object, remember it rigidly attached."""
-        k = grasp_step(steps["actions_abs"][:, 7])
-        obj = self._skill_object
-        if k is None:
-            opened, at = np.flatnonzero(steps["actions_abs"][:, 7] <= 0), None
-            if len(opened):  # the state the opening command led to
-                at = Pose.from_array(steps["ee_poses"][min(opened[0] + 1, len(steps["ee_poses"]) - 1)]).matrix()
-            self._estimates.update(self.grasps.released(at))  # believed there until perception looks again
-        elif obj in self._estimates and k < len(steps["ee_poses"]):
-            k_settled = min(k + CLOSE_PERIODS, len(steps["ee_poses"]) - 1)  # the fingers need a few periods to close
-            self.grasps.grasped(obj, self._estimates[obj].matrix(), Pose.from_array(steps["ee_poses"][k_settled]).matrix())
 
     def step(self, target: Pose, gripper: float) -> Observation:
         """One OSC command (MimicGen's interpolation steps); waits for the driver's next joint_states."""
@@ -421,3 +395,12 @@ class RosGraphEnv(GraphCalls):
         return False  # the planner's EXECUTION_FAILED status carries execution problems
 
 
+def replay_steps(r: ReplaySkill.Result) -> dict[str, np.ndarray]:
+    """A replay_skill result's flat arrays as (steps, ...) arrays."""
+    n = int(r.steps)
+    return {"actions": np.asarray(r.actions, float).reshape(n, 7),
+            "actions_abs": np.asarray(r.actions_abs, float).reshape(n, 8),
+            "ee_poses": np.asarray(r.ee_poses, float).reshape(n, 7),
+            "joint_positions": np.asarray(r.joint_positions, float).reshape(n, 7),
+            "gripper_widths": np.asarray(r.gripper_widths, float).reshape(n),
+            "recovery": np.asarray(r.recovery_steps, bool).reshape(n)}

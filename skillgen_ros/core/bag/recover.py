@@ -25,7 +25,8 @@ from mcap.records import Channel
 from mcap.writer import CompressionType, Writer
 
 from skillgen_ros.core.bag.qos import complete_profiles, missing_keys
-from skillgen_ros.core.bag.reader import BagReader, FileScan, stream_records
+from skillgen_ros.core.bag.reader import BagReader
+from skillgen_ros.core.bag.scan import FileScan, stream_records
 from skillgen_ros.core.bag.writer import (METADATA_FILE, BagSummary, Compression, FileStats, TopicSpec,
                                           write_metadata)
 from skillgen_ros.core.errors import BagError

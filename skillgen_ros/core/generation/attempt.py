@@ -29,6 +29,8 @@ from .episode import OBSERVATION_SOURCES, Episode, EpisodeRecorder, Observation,
 from .initiation import initiation_candidates
 from .mimicgen import check_subtasks, run_mimicgen
 from .outcome import GOAL_INFEASIBLE, FailureReason, motion_failure  # noqa: F401 (re-exported)
+from .outcome import AttemptAborted, AttemptFailed as _Fail  # noqa: F401 (AttemptAborted re-exported)
+from .remote_skill import run_remote_skill
 from .profile import DEFAULT_PROFILE
 from .release import Feedback, ReleaseConfig, release_targets
 from .replay_noise import check_initial_states, run_replay_noise
@@ -103,24 +105,6 @@ class AttemptResult:
     episode: Episode | None  # None in a RunResult once the dataset holds it (session.run_generation)
     timings: dict  # stage -> seconds: reset, perception, motion, skill, success, total
     initiation_candidates_used: tuple[int, ...] = ()  # skillgen: initiation poses tried, per skill reached
-
-
-class AttemptAborted(Exception):
-    """A stop (a canceled goal, Ctrl-C, a distributed run's stop) abandoned the attempt in flight.
-
-    Not a SkillGenError, so no in-attempt handler turns it into a failure: the attempt is not
-    written, and a resumed run (or the next --first-index) runs its index again."""
-
-    def __init__(self, reason: str):
-        super().__init__(f"attempt abandoned: {reason}")
-        self.reason = reason
-
-
-class _Fail(Exception):
-    def __init__(self, reason: FailureReason, message: str, goal_infeasible: bool = False):
-        super().__init__(message)
-        self.reason = reason
-        self.goal_infeasible = goal_infeasible
 
 
 class _Attempt:
@@ -307,7 +291,7 @@ class _Attempt:
                     raise
         self.chosen[-1] = j
         if hasattr(self.env, "replay_skill"):
-            return self.remote_skill(skill, j, T_W_O, goal7)
+            return run_remote_skill(self, skill, j, T_W_O, goal7)
         cmds = plan_replay(seg, T_W_O, self.obs.ee_matrix(), self.cfg.augment, self.cfg.augmentation)
         rng = np.random.default_rng(int(self.rng_noise.integers(2**63 - 1)))  # drawn as remote_skill seeds skill_replay
         t = time.perf_counter()
@@ -317,43 +301,6 @@ class _Attempt:
                 self._step(T, float(g), sigma, StepLabel(False, skill.index, j, goal7, bool(rec)), rng)
         finally:
             self._timed("skill", t)
-
-    def remote_skill(self, skill: SkillLike, j: int, T_W_O: np.ndarray, goal7: np.ndarray) -> None:
-        """Graph mode: the skill_replay node streams the same plan_replay + make_action steps and
-        returns what it executed; they are recorded exactly as local steps would be."""
-        self._budget()
-        t = time.perf_counter()
-        seed = int(self.rng_noise.integers(2**63 - 1))
-        try:
-            steps, ok, reason, message = self.env.replay_skill(skill.index, j, T_W_O, self.cfg.action_noise,
-                                                               self.cfg.augment, seed)
-        except (SkillGenError, TimeoutError) as e:
-            raise _Fail(FailureReason.TIMEOUT if getattr(e, "reason", "") == "TIMEOUT" else FailureReason.SKILL_FAILED,
-                        f"skill {skill.index} replay: {e}") from e
-        finally:
-            self._timed("skill", t)
-        objects = dict(self.obs.object_poses)
-        beliefs, stamps, truth, joints = (steps.get(k) for k in ("object_poses", "stamps_ns", "true_object_poses",
-                                                                 "object_joints"))
-        fingers = steps.get("fingers", np.repeat(np.asarray(steps["gripper_widths"])[:, None] / 2, 2, axis=1))
-        for k in range(len(steps["actions"])):  # per step what the env has: stamps, the sim's truth, beliefs
-            obs = Observation(ee_pose=steps["ee_poses"][k], gripper=fingers[k],
-                              joint_positions=steps["joint_positions"][k],
-                              object_poses=beliefs[k] if beliefs is not None else objects,
-                              true_object_poses=truth[k] if truth is not None else None,
-                              object_joints=joints[k] if joints is not None else None,
-                              stamp_ns=int(stamps[k]) if stamps is not None else None)
-            a = steps["actions"][k]
-            self.rec.add(obs, a, steps["actions_abs"][k][:7], float(steps["actions_abs"][k][7]),
-                         StepLabel(False, skill.index, j, goal7, bool(steps["recovery"][k])))
-            self.gripper = float(steps["actions_abs"][k][7])
-        if len(steps["actions"]):  # the last pose sent (with its noise): the release's drift reference
-            self.last_target = Pose.from_array(steps["actions_abs"][-1][:7]).matrix()
-        self.obs = self.env.observe()
-        if not ok:
-            raise _Fail(FailureReason.TIMEOUT if reason == "TIMEOUT" else FailureReason.SKILL_FAILED,
-                        f"skill {skill.index} replay failed: {reason}: {message}")
-        self._budget()
 
 
 def run_attempt(env: GenerationEnv, source_demos: Sequence[SourceDemo], task: TaskLike, method: str,

@@ -39,6 +39,24 @@ class GraspTracker:
         T = self._in_hand.get(object_id)
         return None if T is None else Pose.from_matrix(np.asarray(T_W_E_now, float) @ T)
 
+    def after_skill(self, gripper_commands, ee_poses, skill_object: str | None,
+                    estimates: dict[str, Pose]) -> dict[str, Pose]:
+        """After a replayed skill (commands and the EE pose array (n, 7) before each): if the hand
+        ends closed on the skill's object, hold it rigidly from CLOSE_PERIODS after the close (the
+        fingers take that long); if it ends open, let go. Returns the poses to believe from now on
+        for what was let go (where the hand left it), else {}."""
+        g = np.asarray(gripper_commands, float)
+        k = grasp_step(g)
+        if k is None:
+            opened, at = np.flatnonzero(g <= 0), None
+            if len(opened):  # the state the opening command led to
+                at = Pose.from_array(ee_poses[min(opened[0] + 1, len(ee_poses) - 1)]).matrix()
+            return self.released(at)
+        if skill_object in estimates and k < len(ee_poses):
+            settled = Pose.from_array(ee_poses[min(k + CLOSE_PERIODS, len(ee_poses) - 1)]).matrix()
+            self.grasped(skill_object, estimates[skill_object].matrix(), settled)
+        return {}
+
 
 def grasp_step(gripper_commands: np.ndarray) -> int | None:
     """Index of the step where the gripper command last switched from open (<= 0) to closed (> 0)

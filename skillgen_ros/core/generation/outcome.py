@@ -1,4 +1,5 @@
-"""How an attempt ends: the dataset's failure reasons, and planner/executor statuses mapped onto them."""
+"""How an attempt ends: the dataset's failure reasons, planner/executor statuses mapped onto them, and the
+two exceptions that end an attempt early (a failure, which is recorded; a stop, which is not)."""
 from __future__ import annotations
 
 import enum
@@ -28,6 +29,28 @@ def motion_failure(status) -> FailureReason | None:
     """Planner/executor status -> None on success, else the attempt's failure reason (PLAN_FAILED default)."""
     name = str(getattr(status, "name", status)).upper()
     return _STATUS.get(name, FailureReason.PLAN_FAILED)
+
+
+class AttemptAborted(Exception):
+    """A stop (a canceled goal, Ctrl-C, a distributed run's stop) abandoned the attempt in flight.
+
+    Not a SkillGenError, so no in-attempt handler turns it into a failure: the attempt is not
+    written, and a resumed run (or the next --first-index) runs its index again."""
+
+    def __init__(self, reason: str):
+        super().__init__(f"attempt abandoned: {reason}")
+        self.reason = reason
+
+
+class AttemptFailed(Exception):
+    """Raised inside an attempt (attempt.py, remote_skill.py); run_attempt turns it into the result's
+    reason and message. goal_infeasible: the planner refused the goal before anything moved, so the
+    next initiation candidate may be tried."""
+
+    def __init__(self, reason: FailureReason, message: str, goal_infeasible: bool = False):
+        super().__init__(message)
+        self.reason = reason
+        self.goal_infeasible = goal_infeasible
 
 
 # Planner answers that mean "this initiation pose cannot be reached" before anything moved.

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
 
-from .commands import JointTrajectory
+from .commands import JointTrajectory, TrajectoryCode, TrajectoryResult
 
 EFFORT_LIMITS = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
 
@@ -108,3 +108,34 @@ class TrajectorySampler:
             return self.traj.positions[-1], np.zeros(7), np.zeros(7)
         t = max(t, 0.0)
         return self._f(t), self._f(t, 1), self._f(t, 2)
+
+
+DEFAULT_GOAL_TOLERANCE = 0.02  # rad
+
+
+@dataclass
+class ActiveTrajectory:
+    """A joint trajectory being tracked: its clock and, once the time is up, FollowJointTrajectory's
+    verdict (the final joint error within goal_tolerance, checked for up to settle_limit s)."""
+    sampler: TrajectorySampler
+    t: float = 0.0
+    goal_tolerance: float = DEFAULT_GOAL_TOLERANCE
+    settle_limit: float = 0.5
+    done: TrajectoryResult | None = None
+
+    def check_goal(self, q: np.ndarray) -> TrajectoryResult | None:
+        """After a control period ending at joint positions q: the result once decided, else None."""
+        dur = self.sampler.traj.duration
+        if self.t >= dur:
+            err = float(np.max(np.abs(q - self.sampler.traj.positions[-1])))
+            if err <= self.goal_tolerance:
+                self.done = TrajectoryResult(TrajectoryCode.SUCCESSFUL, "goal reached", err)
+            elif self.t >= dur + self.settle_limit:
+                self.done = TrajectoryResult(TrajectoryCode.GOAL_TOLERANCE_VIOLATED,
+                                             f"final error {err:.4f} rad > {self.goal_tolerance}", err)
+        return self.done
+
+    @property
+    def progress(self) -> float:
+        dur = self.sampler.traj.duration
+        return min(1.0, self.t / dur) if dur > 0 else 1.0

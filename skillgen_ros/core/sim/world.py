@@ -27,22 +27,13 @@ from .assets import lowpoly_panda_urdf
 from .commands import (Contact, JointTrajectory, TrajectoryCode, TrajectoryResult,  # noqa: F401
                        validate_osc_target, validate_trajectory)
 from .contacts import hand_wrench
-from .control import JointGains, OscGains, TrajectorySampler, joint_torques, osc_torques
+from .control import (DEFAULT_GOAL_TOLERANCE, ActiveTrajectory, JointGains, OscGains, TrajectorySampler,
+                      joint_torques, osc_torques)
 from .hand import STATE_SIZE as HAND_STATE_SIZE
 from .hand import FrankaHand
 
 TABLE_HALF = tuple(x / 2 for x in TABLE_FULL_SIZE)   # robosuite's 0.8 x 0.8 x 0.05 table (core/robot.py)
 TABLE_CENTER = (*TABLE_CENTER_XY, TABLE_Z - TABLE_HALF[2])
-DEFAULT_GOAL_TOLERANCE = 0.02  # rad
-
-
-@dataclass
-class _Trajectory:
-    sampler: TrajectorySampler
-    t: float = 0.0
-    goal_tolerance: float = DEFAULT_GOAL_TOLERANCE
-    settle_limit: float = 0.5
-    done: TrajectoryResult | None = None
 
 
 @dataclass
@@ -136,7 +127,7 @@ class SimWorld:
         self._hold_q = np.array(Q_HOME)
         self._osc_target = self.ee_pose()
         self._mode = "joint_hold"
-        self._traj: _Trajectory | None = None
+        self._traj: ActiveTrajectory | None = None
         self.time = 0.0
 
     def _spawn(self, o: ObjectSpec, pose: Pose) -> int:
@@ -340,7 +331,7 @@ class SimWorld:
         """Validate (raises TrajectoryError) and begin tracking; advance with step_trajectory()."""
         traj = validate_trajectory(joint_names, times, positions, velocities, self.joint_positions())
         tol = goal_tolerance if goal_tolerance > 0 else DEFAULT_GOAL_TOLERANCE
-        self._traj, self._mode = _Trajectory(TrajectorySampler(traj), goal_tolerance=tol), "trajectory"
+        self._traj, self._mode = ActiveTrajectory(TrajectorySampler(traj), goal_tolerance=tol), "trajectory"
         return traj
 
     def step_trajectory(self) -> tuple[float, np.ndarray, TrajectoryResult | None]:
@@ -350,20 +341,12 @@ class SimWorld:
             raise InvalidInputError("no active trajectory", "NO_TRAJECTORY")
         for _ in range(self.substeps):
             self._physics_step()
-        dur = tr.sampler.traj.duration
         q_des = tr.sampler(tr.t)[0]
-        if tr.t >= dur:
-            err = float(np.max(np.abs(self.joint_positions() - tr.sampler.traj.positions[-1])))
-            if err <= tr.goal_tolerance:
-                tr.done = TrajectoryResult(TrajectoryCode.SUCCESSFUL, "goal reached", err)
-            elif tr.t >= dur + tr.settle_limit:
-                tr.done = TrajectoryResult(TrajectoryCode.GOAL_TOLERANCE_VIOLATED,
-                                           f"final error {err:.4f} rad > {tr.goal_tolerance}", err)
-            if tr.done is not None:
-                self._hold_q = tr.sampler.traj.positions[-1].copy()
-                self._mode, self._traj = "joint_hold", None
-                self._osc_target = self.ee_pose()
-        return min(1.0, tr.t / dur) if dur > 0 else 1.0, q_des, tr.done
+        if tr.check_goal(self.joint_positions()) is not None:
+            self._hold_q = tr.sampler.traj.positions[-1].copy()
+            self._mode, self._traj = "joint_hold", None
+            self._osc_target = self.ee_pose()
+        return tr.progress, q_des, tr.done
 
     def execute_joint_trajectory(self, times, positions, velocities=None, joint_names=ARM_JOINTS,
                                  goal_tolerance: float = 0.0) -> TrajectoryResult:

@@ -21,6 +21,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from skillgen_ros import rosenv
+from skillgen_ros.shm import clean_zombie_files
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.graphs import PACKAGE, UnknownNodeError, load_graph, node_executables, processes
 
@@ -78,6 +79,7 @@ def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.
         logs = NodeLogs(log_dir)
         print(f"[launch] {graph}: node logs in {log_dir} (warnings and errors shown here; --verbose streams all)",
               file=sys.stderr, flush=True)
+    clean_zombie_files()  # what killed ROS processes left in /dev/shm (skillgen_ros/shm.py)
     g = _Supervisor(rosenv.node_environment(dict(os.environ)), logs, respawn)
     old = {s: signal.signal(s, g.forward) for s in (signal.SIGINT, signal.SIGTERM)}
     try:

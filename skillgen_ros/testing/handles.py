@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from skillgen_ros.graphs import NodeLaunch, UnknownNodeError, _ros_value, load_graph, processes
+from skillgen_ros.shm import clean_zombie_files
 from skillgen_ros.testing import readiness
 from skillgen_ros.testing.processes import RosProcess, node_command, process_env
 
@@ -122,6 +123,7 @@ def launch_graph(name: str, domain: int, node, artifacts: Path, *, graphs_file=N
     nodes = _with_overrides(load_graph(name, graphs_file=graphs_file), node_parameters, artifacts / "bags", name)
     (artifacts / "bags").mkdir(parents=True, exist_ok=True)
     penv = process_env(domain, artifacts / "ros_log", **(env or {}))
+    clean_zombie_files()  # a node killed by an earlier test leaves Fast DDS files behind (skillgen_ros/shm.py)
     procs: list[RosProcess] = []
     handle = GraphHandle(name, domain, namespace, nodes, procs, artifacts)
     try:

@@ -20,6 +20,16 @@ def _best(cell: dict, method: str) -> str:
     return f"{100 * b['success_rate']:.0f}% ({100 * lo:.0f}-{100 * hi:.0f}; {b['successes']}/{b['rollouts']})"
 
 
+def _budget(rec: dict) -> str:
+    """A network's (or a run's) training budget: wall minutes (checked at chunk ends) and/or steps."""
+    parts = []
+    if rec.get("budget_minutes"):
+        parts.append(f"{rec['budget_minutes']:g} training minutes")
+    if rec.get("budget_steps") and (not parts or rec["budget_steps"] < 200_000):
+        parts.append(f"{rec['budget_steps']} steps")
+    return " or ".join(parts) + " budget"
+
+
 def _network_line(name: str, cell: dict) -> str:
     parts = []
     for net, label in (("hsp", "HSP networks (pi shared, T, Class, Reg)"), ("bc", "MimicGen BC-RNN-GMM")):
@@ -30,7 +40,7 @@ def _network_line(name: str, cell: dict) -> str:
         rate = ds.get("generation_rate")
         gen = f"{ds.get('demos', '?')} demos from {ds.get('attempts', '?')} attempts" + \
             (f" ({100 * rate:.0f}%)" if rate else "")
-        parts.append(f"{label}: {n['steps']} steps in {n['train_seconds'] / 60:.0f} min "
+        parts.append(f"{label}: {n['steps']} steps ({_budget(n)}) in {n['train_seconds'] / 60:.0f} min "
                      f"({n.get('ms_per_train_step', 0):.0f} ms/step, LSTM {n['hidden']}, MLP {n['mlp_hidden']}), "
                      f"data {gen}")
     return f"- {name}: " + "; ".join(parts) if parts else ""
@@ -42,8 +52,8 @@ def hsp_rows(data: dict) -> list[str]:
     if not cells:
         return []
     proto = data.get("protocol", {})
-    budget = (f"{proto.get('budget_minutes'):g} training minutes per network" if proto.get("budget_minutes")
-              else f"{proto.get('budget_steps')} steps per network")
+    budgets = {_budget(n) for c in cells.values() for n in c.get("networks", {}).values()} or {_budget(proto)}
+    budget = f"{budgets.pop()} per network" if len(budgets) == 1 else "the training budget listed per cell below"
     out = [f"HSP and the MimicGen BC baseline (bench/hsp/run.py; best checkpoint over evaluations every "
            f"{proto.get('chunk_steps')} steps, {proto.get('rollouts')} rollouts each on held-out reset seeds, "
            f"{budget}, low-dim observations, CPU; ours with 95% Wilson interval, paper's Fig. 5):", "",

@@ -17,8 +17,10 @@ Results go to --out (bench/results/hsp.json) after every dataset shard, training
 evaluation, so an interrupted run redoes only what is unfinished: rerun the same command.
 Datasets and checkpoints live under --work (out/bench_hsp, not in git).
 
-    # the paper's cells on CPU: 25-minute networks, low-dim observations (hours; resumable)
-    .venv/bin/python bench/hsp/run.py --budget-minutes 25
+    # the paper's cells on CPU, low-dim observations (hours; resumable). Square D1 ran with
+    # --budget-minutes 25, which gave 13,500 steps; the other cells train those steps, so that the
+    # machine's load cannot change how far a network trains (the minutes are checked at chunk ends)
+    .venv/bin/python bench/hsp/run.py --budget-steps 13500 --chunk-steps 4500
     # robomimic's full budget where a GPU is lent
     .venv/bin/python bench/hsp/run.py --device cuda --budget-steps 200000 --out bench/results/hsp_cuda.json
     # the budget's cost on one cell (Square D1): the budget vs 3x
@@ -29,11 +31,12 @@ Datasets and checkpoints live under --work (out/bench_hsp, not in git).
     # the data-scaling row: Square D2, HSP-Class, 200 demos
     .venv/bin/python bench/hsp/run.py --cells Square/D2 --methods HSP-Class --demos 200 --out bench/results/hsp_200demos.json
     # two processes on 2 cores (--threads 1 each): the HSP methods into hsp.json, the baseline beside it, then merged
-    .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods HSP-TAMP HSP-Class HSP-Reg --budget-minutes 25 --threads 1
-    .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods MimicGen-BC --budget-minutes 25 --threads 1 \
-        --out bench/results/hsp_bc_part.json
-    .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods MimicGen-BC --budget-minutes 25 \
-        --merge-from bench/results/hsp_bc_part.json
+    .venv/bin/python bench/hsp/run.py --cells Square/D0 --methods HSP-TAMP HSP-Class HSP-Reg --budget-steps 13500 \
+        --chunk-steps 4500 --threads 1
+    .venv/bin/python bench/hsp/run.py --cells Square/D0 --methods MimicGen-BC --budget-steps 13500 --chunk-steps 4500 \
+        --threads 1 --out bench/results/hsp_bc_part.json
+    .venv/bin/python bench/hsp/run.py --cells Square/D0 --methods MimicGen-BC --budget-steps 13500 --chunk-steps 4500 \
+        --threads 1 --merge-from bench/results/hsp_bc_part.json
     # after a fix in deployment: evaluate the kept checkpoints again (the training records stay)
     .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods HSP-TAMP --reevaluate "TAMP goal fix"
     # smoke (seconds of training, 2 rollouts)

@@ -164,3 +164,10 @@ def test_every_generate_option_has_help():
     for act in generate._parser()._actions:
         if act.option_strings and act.dest != "help":
             assert act.help, f"skillgen generate {act.option_strings} has no help"
+
+
+def test_task_help_names_every_task_the_registry_knows():
+    from skillgen_ros.core.tasks import TASK_NAMES
+
+    (task,) = [a for a in generate._parser()._actions if "--task" in a.option_strings]
+    assert all(t in task.help for t in TASK_NAMES), task.help  # it once omitted ThreePieceAssembly and Coffee

@@ -123,6 +123,24 @@ def test_launch_sends_node_output_to_files(ros_domain, tmp_path):
             p.wait(30)
 
 
+def test_launch_verbose_streams_node_output_and_writes_no_log_files(ros_domain, tmp_path):
+    out = tmp_path / "terminal.txt"
+    with open(out, "w") as f:
+        p = subprocess.Popen(SKILLGEN + ["launch", "mock_record", "--verbose"], env=node_env(ros_domain),
+                             stdout=f, stderr=subprocess.STDOUT, text=True, cwd=tmp_path, start_new_session=True)
+    try:
+        assert wait_for(lambda: "mock_driver up" in out.read_text(), 120), out.read_text()[-3000:]
+        p.send_signal(signal.SIGINT)
+        assert p.wait(60) == 0
+        text = out.read_text()
+        assert "[INFO]" in text and "node logs in" not in text, text[-3000:]  # every node's INFO, here
+        assert not (tmp_path / "logs").exists()
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(30)
+
+
 def test_a_goal_the_graph_rejects_is_one_line_and_nodes_log_to_the_run(ros_domain, tmp_path):
     """With the preflight bypassed the datagen node itself rejects the goal: the terminal still shows
     one line (no duplicate node ERROR, no rclpy noise) and each node's log is a file in the run."""

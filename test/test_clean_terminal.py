@@ -156,6 +156,19 @@ def test_a_goal_the_graph_rejects_is_one_line_and_nodes_log_to_the_run(ros_domai
     assert "generate rejected: UNKNOWN_TASK" in (logs / "datagen.log").read_text()
 
 
+def test_a_generate_run_shows_bar_and_summary_and_no_node_info(ros_domain, tmp_path):
+    """The whole job from the terminal: the nodes' INFO lines (the planner's per request) go to their log
+    files, the terminal has the summary and the paths (warnings may appear; INFO never)."""
+    out = tmp_path / "run"
+    r = subprocess.run(SKILLGEN + ["generate", "--attempts", "1", "--video-attempts", "0", "--no-bag",
+                                   "--output", str(out)], capture_output=True, text=True, timeout=900, cwd=REPO,
+                       env=node_env(ros_domain))
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "success rate: " in r.stdout and f"logs     {out / 'logs'}" in r.stdout, r.stdout
+    assert "[INFO]" not in r.stdout + r.stderr, r.stderr[-3000:]
+    assert "[INFO]" in (out / "logs" / "planner.log").read_text() and "planner ready" not in r.stderr
+
+
 def test_launch_shows_the_end_of_a_dead_nodes_log(ros_domain, tmp_path):
     import psutil
 

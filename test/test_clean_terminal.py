@@ -123,6 +123,24 @@ def test_launch_sends_node_output_to_files(ros_domain, tmp_path):
             p.wait(30)
 
 
+def test_launch_verbose_streams_node_output_and_writes_no_log_files(ros_domain, tmp_path):
+    out = tmp_path / "terminal.txt"
+    with open(out, "w") as f:
+        p = subprocess.Popen(SKILLGEN + ["launch", "mock_record", "--verbose"], env=node_env(ros_domain),
+                             stdout=f, stderr=subprocess.STDOUT, text=True, cwd=tmp_path, start_new_session=True)
+    try:
+        assert wait_for(lambda: "mock_driver up" in out.read_text(), 120), out.read_text()[-3000:]
+        p.send_signal(signal.SIGINT)
+        assert p.wait(60) == 0
+        text = out.read_text()
+        assert "[INFO]" in text and "node logs in" not in text, text[-3000:]  # every node's INFO, here
+        assert not (tmp_path / "logs").exists()
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(30)
+
+
 def test_a_goal_the_graph_rejects_is_one_line_and_nodes_log_to_the_run(ros_domain, tmp_path):
     """With the preflight bypassed the datagen node itself rejects the goal: the terminal still shows
     one line (no duplicate node ERROR, no rclpy noise) and each node's log is a file in the run."""
@@ -136,6 +154,19 @@ def test_a_goal_the_graph_rejects_is_one_line_and_nodes_log_to_the_run(ros_domai
     logs = tmp_path / "run" / "logs"
     assert {"datagen.log", "planner.log", "perception.log", "recorder.log"} <= {p.name for p in logs.iterdir()}
     assert "generate rejected: UNKNOWN_TASK" in (logs / "datagen.log").read_text()
+
+
+def test_a_generate_run_shows_bar_and_summary_and_no_node_info(ros_domain, tmp_path):
+    """The whole job from the terminal: the nodes' INFO lines (the planner's per request) go to their log
+    files, the terminal has the summary and the paths (warnings may appear; INFO never)."""
+    out = tmp_path / "run"
+    r = subprocess.run(SKILLGEN + ["generate", "--attempts", "1", "--video-attempts", "0", "--no-bag",
+                                   "--output", str(out)], capture_output=True, text=True, timeout=900, cwd=REPO,
+                       env=node_env(ros_domain))
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "success rate: " in r.stdout and f"logs     {out / 'logs'}" in r.stdout, r.stdout
+    assert "[INFO]" not in r.stdout + r.stderr, r.stderr[-3000:]
+    assert "[INFO]" in (out / "logs" / "planner.log").read_text() and "planner ready" not in r.stderr
 
 
 def test_launch_shows_the_end_of_a_dead_nodes_log(ros_domain, tmp_path):
@@ -164,3 +195,10 @@ def test_every_generate_option_has_help():
     for act in generate._parser()._actions:
         if act.option_strings and act.dest != "help":
             assert act.help, f"skillgen generate {act.option_strings} has no help"
+
+
+def test_task_help_names_every_task_the_registry_knows():
+    from skillgen_ros.core.tasks import TASK_NAMES
+
+    (task,) = [a for a in generate._parser()._actions if "--task" in a.option_strings]
+    assert all(t in task.help for t in TASK_NAMES), task.help  # it once omitted ThreePieceAssembly and Coffee

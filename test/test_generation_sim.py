@@ -106,6 +106,11 @@ def test_env_plans_at_the_datagen_graphs_speed():
 
     planner = next(n for n in load_graph("datagen") if n.exe == "planner")
     assert ("velocity_scale", str(SimEnvConfig().velocity_scale)) in planner.parameters
+    # and docs/architecture.md says that speed (it once said the graph planner ran at full speed)
+    import re
+
+    doc = (REPO / "docs" / "architecture.md").read_text()
+    assert re.findall(r"`velocity_scale: ([0-9.]+)`", doc) == [str(SimEnvConfig().velocity_scale)]
 
 
 def test_recorded_object_poses_are_the_true_ones_and_follow_the_held_nut(square):

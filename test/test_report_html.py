@@ -84,6 +84,14 @@ def test_report_html_content_and_never_overwritten(run_dir):
               "&lt;b&gt;OK&lt;/b&gt;"):
         assert s in text, s
     assert "<b>OK</b>" not in text and "http://" not in text and "https://" not in text  # escaped; nothing remote
+    # the interval and the paper's cell for Square D0 skillgen, the time per stage (reset, perception, motion,
+    # skill, success: mean and max over the four attempts), an attempt's row (index, source demos, reason, seconds)
+    for s in ("95% Wilson interval 15.0-85.0%", "the paper: 99.8%", "<h2>Time per stage (s per attempt)</h2>",
+              '<td class="l">mean</td><td>0.000</td><td>0.000</td><td>0.500</td><td>2.500</td><td>0.000</td>',
+              '<td class="l">max</td><td>0.000</td><td>0.000</td><td>0.500</td><td>4.000</td><td>0.000</td>',
+              '<tr data-reason="PLAN_FAILED"><td>1</td><td class="l">1, 1</td><td class="l fail">PLAN_FAILED</td>'
+              "<td>2.50</td>"):
+        assert s in text, s
     with pytest.raises(InvalidInputError) as e:
         write_report_html(str(out), RunSummary.from_results(TASK, VARIANT, "skillgen", []), [])
     assert e.value.reason == "OUTPUT_EXISTS"

@@ -35,7 +35,7 @@ def test_the_grasp_table_is_the_skill_point_table():
 def test_every_task_has_its_picture_in_the_docs():
     for t in TASK_NAMES:
         assert f"(teleop_grasps_{t}.png)" in DOC and (ROOT / "docs" / f"teleop_grasps_{t}.png").is_file()
-    assert "docs/foxglove/skillgen.json" in DOC
+    assert "docs/foxglove/teleop.json" in DOC  # the layout with the wrist camera (test_foxglove_scene checks it)
 
 
 def test_the_picture_script_marks_every_skill_point_inside_the_image(tmp_path):

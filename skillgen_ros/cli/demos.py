@@ -121,10 +121,14 @@ def subset_paths(task_dir, subset: str = "all") -> list[Path]:
 
 
 # ---------------------------------------------------------------------------------------- record
-# A teleop session on the sim records the sim's ground-truth object poses; on a real robot remap
-# or record perception/object_poses instead (the loader prefers it when present).
-SOURCE_TOPICS = ["joint_states", "ee_pose", "gripper_state", "osc_target", "sim/ground_truth/object_poses",
-                 "perception/object_poses"]
+def record_topics() -> list[str]:
+    """What `record` records: every topic the source-demo loader reads (core/skills/bag_demos.py), so a
+    teleop demo is judged and loaded like a made one (Coffee's lid angle is object_joint_states). On
+    the sim that is the ground-truth object poses; on a real robot remap or record
+    perception/object_poses instead (the loader prefers it when present)."""
+    from skillgen_ros.core.skills.bag_demos import SOURCE_TOPICS
+
+    return list(SOURCE_TOPICS)
 
 
 def _exe(name: str) -> str:
@@ -154,11 +158,12 @@ def record(task: str, seed: int, out: Path, variant: str = "D0", keep_failed: bo
                                   "-p", f"initial_seed:={seed}", "-p", "timing_mode:=lockstep",
                                   "-p", "publish_points:=false"])]
     try:
-        topics = "[" + ",".join(f'"{t}"' for t in SOURCE_TOPICS) + "]"
+        topics = "[" + ",".join(f'"{t}"' for t in record_topics()) + "]"
         # scene: /tf, the robot model and object markers too, so the demo opens as a 3D scene in Foxglove
         procs.append(start("recorder", ["-p", f"output:={bag}", "-p", f"topics:={topics}", "-p", "scene:=true"]))
         print(f"recording {task}/{variant} seed {seed} into {bag} (node logs in {logs.dir}); keys and where "
-              f"to grasp: docs/teleop.md (q quits and judges the demo); cameras: docs/foxglove/skillgen.json",
+              f"to grasp: docs/teleop.md (q quits and judges the demo); cameras: `skillgen view` in another "
+              f"terminal, Foxglove layout docs/foxglove/teleop.json",
               flush=True)
         teleop = subprocess.run([_exe("teleop"), "--ros-args", "-p", f"task:={task}"], env=env)  # this terminal
     except KeyboardInterrupt:

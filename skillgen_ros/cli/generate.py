@@ -29,8 +29,10 @@ from skillgen_ros.core.validation import USE_DEFAULT
 
 
 def _parser() -> argparse.ArgumentParser:
+    from skillgen_ros.core.tasks import TASK_NAMES  # the registry's names, so the help cannot drift
+
     p = argparse.ArgumentParser(prog="skillgen generate", description=__doc__.split("\n\n")[0])
-    p.add_argument("--task", default="Square", help="Square, PickPlace, NutAssembly or Threading (default Square)")
+    p.add_argument("--task", default="Square", help=f"one of {', '.join(TASK_NAMES)} (default Square)")
     p.add_argument("--variant", default="D1",
                    help="reset distribution: D0, D1, D2 or a clutter variant (docs/tasks.md)")
     p.add_argument("--method", default="skillgen", help="skillgen, mimicgen or replay_noise")

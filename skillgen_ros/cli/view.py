@@ -3,7 +3,8 @@
     skillgen view [--port 8765] [--host 127.0.0.1] [--no-scene] [--package-path] [--ros-args ...]
 
 Open Foxglove, "Open connection", Foxglove WebSocket, ws://localhost:8765, and import the layout
-docs/foxglove/skillgen.json (docs/foxglove.md). Loopback only unless --host names another
+docs/foxglove/skillgen.json (a generation run) or docs/foxglove/teleop.json (recording a demo:
+wrist and front cameras) (docs/foxglove.md). Loopback only unless --host names another
 address: the graph's topics would be readable by anyone who reaches that port.
 """
 from __future__ import annotations

@@ -4,7 +4,9 @@ Publishes the recorded CDR bytes unchanged (no deserialization) from a dedicated
 thread, scheduled against a monotonic clock: message i goes out at
 t0 + (log_time_i - log_time_first) / rate. Options: start offset into the bag, loop, topic
 filter, remapping (`from:=to`), /clock publishing of bag time, and the recorded QoS
-(reliability, durability) where the bag has it. Exits when done unless `exit_when_done` is off.
+(reliability, durability) where the bag has it. Exits when done unless `exit_when_done` is off,
+once its subscribers acknowledged every reliable message (at most ACK_TIMEOUT_S): a reader that
+matched late gets the resent samples instead of losing them with the exiting process.
 A bag that is missing or holds a type this machine lacks stops the node at start with a reason.
 """
 from __future__ import annotations
@@ -16,6 +18,7 @@ import time
 from typing import Iterator
 
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.duration import Duration
 from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
 
@@ -25,6 +28,9 @@ from skillgen_ros.core.bag.reader import BagReader, check_installed, message_cla
 from skillgen_ros.core.errors import ParameterError
 from skillgen_ros.nodes.bag_qos import playback_qos
 from skillgen_ros.nodes.runtime import run_node
+
+
+ACK_TIMEOUT_S = 5.0  # per publisher, after the last message, before exit_when_done shuts down
 
 
 def parse_remaps(pairs: list[str]) -> dict[str, str]:
@@ -183,6 +189,10 @@ class Player(Node):
             return
         self.get_logger().info(f"playback done: {self.published} messages published")
         if self._exit and not self._stop.is_set():
+            ack = Duration(seconds=ACK_TIMEOUT_S)
+            unacked = [n for n, pub in self._pubs.items() if not pub.wait_for_all_acked(ack)]
+            if unacked:
+                self.get_logger().warn(f"exiting with messages not acknowledged on {unacked}")
             self.context.try_shutdown()
 
     def destroy_node(self):

@@ -2,7 +2,8 @@
 
 Everything takes and returns plain (N, 3) float arrays in the world frame, so the same code runs on
 a PointCloud2 from a real camera, on a sim render, or on a synthetic test scene. open3d does the
-voxel grid (and the ICP in pose.py). The plane RANSAC and DBSCAN are our own, for reasons:
+voxel grid (and, in pose.py, the 6-DOF point-to-plane ICP and FPFH registration; the upright ICP
+there is ours). The plane RANSAC and DBSCAN are our own, for reasons:
 - RANSAC: open3d's `segment_plane` returns the plane with the most inliers, whatever its tilt, so
   a box side or the back wall of a bin can win over the table; ours only considers planes within
   `max_tilt_deg` of up, scores all candidate triples at once on a subsample and refits on the

@@ -16,7 +16,9 @@ from skillgen_ros.core.tasks import SceneState, get_task
 from skillgen_ros.core.tasks import coffee as C
 from skillgen_ros.core.tasks import coffee_prep as CP
 from skillgen_ros.core.generation.mimicgen import spec_for
-from skillgen_ros.core.tasks.articulation import initial_joint_values, joint_key, link_point
+from skillgen_ros.core.planning.articulated import link_boxes
+from skillgen_ros.core.tasks.articulation import initial_joint_values, joint_key, link_point, posed_link_parts
+from skillgen_ros.core.tasks.shapes import aabb, read_obj
 from skillgen_ros.core.tasks.skill_points import SKILL_POINTS, skill_point_world
 from skillgen_ros.core.tasks.spec import SEPARATION_MARGIN, boxes_overlap
 from skillgen_ros.core.tasks.suite import IN_PROGRESS, TASK_NAMES
@@ -56,6 +58,33 @@ def test_drawer_geometry_is_drawer_long_xml():
     # drawer_bottom's top (the pod's floor) 5.4 cm over the base body; the handle bar's front 22.9 cm before it
     assert CAB.keypoint("tray_top") - CAB.keypoint("body_origin") == pytest.approx((0.0, -0.05, 0.054))
     assert CAB.keypoint("handle") - CAB.keypoint("body_origin") == pytest.approx((0.0, -0.239, 0.116))
+
+
+def test_the_pod_sits_on_the_closed_drawers_bottom_5_mm_higher_than_mimicgens():
+    # _reset_internal: drawer_bottom's top (0.054 over the base body) + the pod's bottom offset + 1 mm; MimicGen's
+    # base body is 5 mm over the table (z 0.805), ours 10 mm (its bottom surface rests on the table)
+    ours = CP.pod_on_tray_z(CAB, TABLE_Z) - TABLE_Z
+    assert ours == pytest.approx(0.010 + 0.054 + C.POD_HALF[2] + 0.001)
+    assert ours - (0.805 - 0.8 + 0.054 + C.POD_HALF[2] + 0.001) == pytest.approx(CP.CABINET_SINK)
+    with pytest.raises(InvalidInputError):
+        CP.pod_in_drawer_xy((0.7, -0.35), 0.3)   # a turned cabinet has no axis-aligned pod box
+
+
+def test_meshes_and_planner_boxes_follow_the_links():
+    for o in (CAB, M, MUG):
+        v, f = read_obj(o.mesh_path)
+        lo, hi = aabb(o.parts + posed_link_parts(o.links, o.joints))   # the links at their reset values
+        np.testing.assert_allclose(v.min(0), lo, atol=1e-4)
+        np.testing.assert_allclose(v.max(0), hi, atol=1e-4)
+        lo, hi = aabb(o.parts)   # the object frame: the fixed base's (or the free body's) box centre
+        np.testing.assert_allclose((hi + lo) / 2, 0.0, atol=1e-9)
+        np.testing.assert_allclose((hi - lo) / 2, o.half_extents, atol=1e-9)
+    # the drawer's link as planner boxes: pulled 0.2 m, every box 0.2 m along the world's +y (cabinet yaw pi)
+    pose = Pose([0.71, -0.3185, TABLE_Z + CAB.half_extents[2]], Rotation.from_euler("z", np.pi).as_quat())
+    closed, out = link_boxes(CAB, pose, {SLIDE: 0.0}), link_boxes(CAB, pose, {SLIDE: -0.2})
+    assert len(closed) == 8 and all(b.name == "drawer" for b in closed)
+    for a, b in zip(closed, out):
+        assert b.pose[:3, 3] - a.pose[:3, 3] == pytest.approx([0.0, 0.2, 0.0], abs=1e-12)
 
 
 def test_mug_geometry_is_shapenet_3143a4ac():

@@ -22,6 +22,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..errors import InvalidInputError
 from . import coffee as C
 from .articulation import Joint, Link
 from .objects import _build
@@ -172,7 +173,7 @@ def pod_in_drawer_xy(cabinet_xy, cabinet_yaw: float) -> tuple[tuple[float, float
     (a fixed cabinet: a multiple of pi / 2, so the box stays axis-aligned)."""
     k = cabinet_yaw / (np.pi / 2)
     if abs(k - round(k)) > 1e-9:
-        raise ValueError("the pod's world box needs the cabinet's yaw a multiple of 90 deg")
+        raise InvalidInputError("the pod's world box needs the cabinet's yaw a multiple of 90 deg")
     R = Rotation.from_euler("z", cabinet_yaw)
     base = np.asarray(drawer().keypoint("tray_top")) - np.asarray(drawer().keypoint("body_origin"))  # from the body
     corners = np.array([R.apply([base[0] + x, base[1] + y, 0.0])[:2] for x in POD_IN_DRAWER_X for y in POD_IN_DRAWER_Y])

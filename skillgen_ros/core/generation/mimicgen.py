@@ -90,6 +90,8 @@ MIMICGEN_SPECS: dict[str, MimicGenSpec] = {
     "ThreePieceAssembly": MimicGenSpec((5, 10), "random"),
     # coffee (generate_core_configs.py make_generators): random, [5, 10] for its grasp subtask, no source per subtask
     "Coffee": MimicGenSpec((5, 10), "random"),
+    # coffee_preparation: random, [5, 10] for each of its 4 subtask ends, no source per subtask
+    "CoffeePreparation": MimicGenSpec((5, 10), "random"),
 }
 DEFAULT_SPEC = MimicGenSpec()  # a task MimicGen has no config for: its template defaults
 

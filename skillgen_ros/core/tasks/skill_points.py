@@ -22,6 +22,9 @@ SKILL_POINTS: dict[str, tuple[str, ...]] = {
     "Threading": ("handle", "ring_center"),
     "ThreePieceAssembly": ("grasp", "top", "grasp", "top"),
     "Coffee": ("grasp", "holder_top"),
+    # the mug at its rim opposite the handle, then the machine's drip base; the drawer at its handle (closed, as
+    # a reset leaves it), the pod 8 mm under its top, the machine at its pod holder's rim
+    "CoffeePreparation": ("grasp", "base_top", "handle", "grasp", "holder_top"),
 }
 
 

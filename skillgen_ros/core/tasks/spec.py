@@ -26,6 +26,7 @@ from .shapes import Part
 MAX_SEED = 2**32 - 1
 SEPARATION_MARGIN = 0.01  # metres between the bounding circles of two sampled objects
 SYMMETRIES = ("none", "z2", "z4", "z_continuous")
+FOOTPRINTS = ("circle", "box")
 
 
 @dataclass(frozen=True)
@@ -96,11 +97,16 @@ class SkillSpec:
 
 @dataclass(frozen=True)
 class Region:
-    """Reset region of one object: world x/y ranges of its origin (m) and its yaw range (rad)."""
+    """Reset region of one object: world x/y ranges of its origin (m) and its yaw range (rad).
+
+    `z`: the world z of the object frame's origin when the object does not rest on the table top but in
+    or on a fixture (Coffee Prep's pod on the drawer's tray: MimicGen samples it on its own, inside the
+    drawer). Such an object is not kept apart from the others: it lies inside its fixture's footprint."""
 
     x: tuple[float, float]
     y: tuple[float, float]
     yaw: tuple[float, float] = (0.0, 0.0)
+    z: float | None = None
 
     def sample(self, rng: np.random.Generator) -> tuple[float, float, float]:
         return (float(rng.uniform(*self.x)), float(rng.uniform(*self.y)), float(rng.uniform(*self.yaw)))
@@ -123,6 +129,9 @@ class TaskSpec:
     """A task: objects, skills, variants and their reset regions, and the success predicate.
 
     `objects` are present in every variant; `obstacle` (if any) is added in the `clutter_variants`.
+    `footprint`: how the reset keeps sampled objects apart: "circle" (bounding circles, every task so far)
+    or "box" (oriented x-y bounding boxes: Coffee Prep, whose reference sets the drawer and the machine
+    closer than their bounding circles allow; robosuite checks hand-set radii there).
     """
 
     name: str
@@ -133,6 +142,11 @@ class TaskSpec:
     success_fn: Callable[[SceneState], bool] | None = field(repr=False, default=None)
     obstacle: ObjectSpec | None = None
     clutter_variants: tuple[str, ...] = ()
+    footprint: str = "circle"
+
+    def __post_init__(self):
+        if self.footprint not in FOOTPRINTS:
+            raise InvalidInputError(f"task {self.name}: footprint must be one of {FOOTPRINTS}, got {self.footprint!r}")
 
     def _check_variant(self, variant: str) -> None:
         if variant not in self.variants:
@@ -166,14 +180,14 @@ class TaskSpec:
             placed: dict[str, Pose] = {}
             ok = True
             for o in objs:
+                r = regions[o.id]
                 for _ in range(100):
-                    x, y, yaw = regions[o.id].sample(rng)
+                    x, y, yaw = r.sample(rng)
                     x, y = np.array([x, y]) - _anchor_offset(o, yaw)
-                    if all(np.hypot(x - p.position[0], y - p.position[1])
-                           >= o.footprint_radius + self.object(k).footprint_radius + SEPARATION_MARGIN
-                           for k, p in placed.items()):
-                        placed[o.id] = Pose([x, y, TABLE_Z + o.half_extents[2]],
-                                            Rotation.from_euler("z", yaw).as_quat())
+                    if r.z is not None or all(self._apart(o, x, y, yaw, self.object(k), p)
+                                              for k, p in placed.items() if regions[k].z is None):
+                        z = TABLE_Z + o.half_extents[2] if r.z is None else r.z
+                        placed[o.id] = Pose([x, y, z], Rotation.from_euler("z", yaw).as_quat())
                         break
                 else:
                     ok = False
@@ -182,11 +196,34 @@ class TaskSpec:
                 return {o.id: placed[o.id] for o in self.objects_for(variant)}
         raise SkillGenError(f"{self.name}/{variant}: could not sample a collision-free reset", "RESET_FAILED")
 
+    def _apart(self, o: ObjectSpec, x: float, y: float, yaw: float, other: ObjectSpec, pose: Pose) -> bool:
+        """Whether `o` at (x, y, yaw) keeps SEPARATION_MARGIN from `other` at `pose`, by this task's footprint."""
+        if self.footprint == "circle":
+            return bool(np.hypot(x - pose.position[0], y - pose.position[1])
+                        >= o.footprint_radius + other.footprint_radius + SEPARATION_MARGIN)
+        other_yaw = float(Rotation.from_quat(pose.quaternion).as_euler("ZYX")[0])
+        return not boxes_overlap((x, y), yaw, o.half_extents[:2], pose.position[:2], other_yaw,
+                                 other.half_extents[:2], SEPARATION_MARGIN)
+
     def is_success(self, state: SceneState) -> bool:
         """The task's success predicate, evaluated on the scene state (true poses, EE, gripper)."""
         if not isinstance(state, SceneState):
             raise InvalidInputError(f"is_success takes a SceneState, got {type(state).__name__}")
         return bool(self.success_fn(state)) if self.success_fn else False
+
+
+def boxes_overlap(ca, yaw_a: float, half_a, cb, yaw_b: float, half_b, margin: float = 0.0) -> bool:
+    """Whether two x-y rectangles (centre, yaw, half sizes) come within `margin` of each other
+    (separating-axis test on the rectangles grown by margin / 2 each)."""
+    d = np.asarray(cb, float)[:2] - np.asarray(ca, float)[:2]
+    axes = [np.array([np.cos(a), np.sin(a)]) for a in (yaw_a, yaw_b)]
+    axes += [np.array([-u[1], u[0]]) for u in axes]
+    ea, eb = np.asarray(half_a, float)[:2] + margin / 2, np.asarray(half_b, float)[:2] + margin / 2
+
+    def reach(half, yaw, n):   # half-width of a rectangle's projection onto n
+        u, v = np.array([np.cos(yaw), np.sin(yaw)]), np.array([-np.sin(yaw), np.cos(yaw)])
+        return abs(half[0] * (u @ n)) + abs(half[1] * (v @ n))
+    return all(abs(d @ n) < reach(ea, yaw_a, n) + reach(eb, yaw_b, n) for n in axes)
 
 
 def _anchor_offset(o: ObjectSpec, yaw: float) -> np.ndarray:

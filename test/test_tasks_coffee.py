@@ -16,6 +16,7 @@ from skillgen_ros.core.tasks import SceneState, get_task
 from skillgen_ros.core.tasks import coffee as C
 from skillgen_ros.core.tasks.articulation import Joint, Link, joint_key, link_frames, validate_articulation
 from skillgen_ros.core.tasks.shapes import box, read_obj
+from helpers.regions import assert_widths_match
 
 TASK = get_task("Coffee")
 M, POD = TASK.object("coffee_machine"), TASK.object("coffee_pod")
@@ -122,10 +123,7 @@ PAPER = {  # SkillMimicGen appendix: (x width, y width, yaw range deg)
 
 
 def test_region_widths_match_the_paper_to_the_millimetre():
-    for (v, oid), (w, h, yaw) in PAPER.items():
-        r = TASK.regions(v)[oid]
-        assert round(r.x[1] - r.x[0], 3) == w and round(r.y[1] - r.y[0], 3) == h, (v, oid, r)
-        assert round(np.degrees(r.yaw[1] - r.yaw[0])) == yaw, (v, oid, r)
+    assert_widths_match(TASK, PAPER)
 
 
 def test_region_positions_follow_mimicgen_placement_bounds():

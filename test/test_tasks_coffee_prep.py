@@ -22,6 +22,7 @@ from skillgen_ros.core.tasks.shapes import aabb, read_obj
 from skillgen_ros.core.tasks.skill_points import SKILL_POINTS, skill_point_world
 from skillgen_ros.core.tasks.spec import SEPARATION_MARGIN, boxes_overlap
 from skillgen_ros.core.tasks.suite import IN_PROGRESS, TASK_NAMES
+from helpers.regions import assert_widths_match
 
 TASK = get_task("CoffeePreparation")
 M, POD, MUG, CAB = (TASK.object(k) for k in ("coffee_machine", "coffee_pod", "mug", "drawer"))
@@ -162,10 +163,7 @@ PAPER = {  # SkillMimicGen appendix: (x width, y width, yaw range deg)
 
 
 def test_region_widths_match_the_paper_to_the_millimetre():
-    for (v, oid), (w, h, yaw) in PAPER.items():
-        r = TASK.regions(v)[oid]
-        assert round(r.x[1] - r.x[0], 3) == w and round(r.y[1] - r.y[0], 3) == h, (v, oid, r)
-        assert round(np.degrees(r.yaw[1] - r.yaw[0])) == yaw, (v, oid, r)
+    assert_widths_match(TASK, PAPER)
 
 
 def test_region_positions_follow_mimicgen_placement_bounds():

@@ -23,6 +23,32 @@ def test_every_ros_package_the_package_xml_names_is_imported():
     assert not unused, f"package.xml depends on {unused}, which no module imports"
 
 
+# requirements.txt's PyPI names -> package.xml's rosdep keys ("-pip" where Debian has no package)
+ROSDEP_KEYS = {
+    "numpy": "python3-numpy", "scipy": "python3-scipy", "pybullet": "python3-pybullet-pip", "pin": "pinocchio",
+    "ompl": "ompl", "ruckig": "python3-ruckig-pip", "open3d-cpu": "python3-open3d-pip", "mcap": "python3-mcap-pip",
+    "mcap-ros2-support": "python3-mcap-ros2-support-pip", "rosbags": "python3-rosbags-pip", "h5py": "python3-h5py",
+    "matplotlib": "python3-matplotlib", "opencv-python-headless": "python3-opencv", "tqdm": "python3-tqdm",
+    "pyyaml": "python3-yaml", "numba": "python3-numba", "psutil": "python3-psutil", "torch": "python3-torch",
+    "foxglove-sdk": "python3-foxglove-sdk-pip", "imageio-ffmpeg": "python3-imageio-ffmpeg-pip",
+    "websockets": "python3-websockets", "ray": "python3-ray-pip",
+    "pytest": "python3-pytest", "hypothesis": "python3-hypothesis",
+}
+# build tooling and the ROS wheels themselves (their ROS names are listed by package.xml directly)
+NOT_RUNTIME = ("ros-jazzy-", "catkin-pkg", "setuptools")
+
+
+def test_package_xml_names_every_python_requirement():
+    """A rosdep user (colcon build in a workspace) gets what pip users get from requirements.txt."""
+    xml = (ROOT / "package.xml").read_text()
+    keys = set(re.findall(r"<(?:exec|test)_depend>([\w-]+)</(?:exec|test)_depend>", xml))
+    reqs = [n for n in _pins(ROOT / "requirements.txt") if not n.startswith(NOT_RUNTIME)]
+    unmapped = [n for n in reqs if n not in ROSDEP_KEYS]
+    assert not unmapped, f"requirements.txt has {unmapped}: add its rosdep key to ROSDEP_KEYS and package.xml"
+    missing = sorted(ROSDEP_KEYS[n] for n in reqs if ROSDEP_KEYS[n] not in keys)
+    assert not missing, f"package.xml lacks {missing}"
+
+
 def test_removed_dependencies_stay_removed():
     req = (ROOT / "requirements.txt").read_text()
     assert not re.search(r"^(rich|ros-jazzy-std-srvs)==", req, flags=re.M)

@@ -131,11 +131,17 @@ def test_a_real_sigint_stops_at_the_next_step_boundary(dataset, tmp_path):
         return 0.0
 
     cfg = TrainConfig(epochs=3, steps_per_epoch=4, batch_size=8, eval_every=1, threads=1)
-    with pytest.raises(KeyboardInterrupt):
-        train(TrainRequest(str(dataset), str(tmp_path / "run"), NET, cfg, progress=False), evaluate=evaluate)
+    # a handler of our own: pytest's process may hold any (an earlier test's rclpy or Ray may have
+    # left SIG_IGN), and train() must restore whatever it found
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            train(TrainRequest(str(dataset), str(tmp_path / "run"), NET, cfg, progress=False), evaluate=evaluate)
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler was restored
+    finally:
+        signal.signal(signal.SIGINT, before)
     saved = read_checkpoint(tmp_path / "run" / "last.pt")[0]
     assert (saved.step, saved.epoch, len(saved.history)) == (4, 1, 1)  # the epoch finished, no step after it
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler was restored
 
 
 def test_validation_demos_are_split_off_and_rank_the_best(tmp_path_factory, tmp_path):

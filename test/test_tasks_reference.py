@@ -16,6 +16,7 @@ from skillgen_ros.core.robot import TABLE_CENTER_XY, TABLE_FULL_SIZE, TABLE_Z
 from skillgen_ros.core.tasks import SceneState, get_task
 from skillgen_ros.core.tasks import objects as O
 from skillgen_ros.core.tasks import suite as S
+from helpers.regions import assert_widths_match
 
 FAR = np.array([0.40, 0.0, 0.40])  # an EE position well away from every object
 
@@ -151,14 +152,9 @@ PAPER = {
 def test_every_paper_region_width_to_the_millimetre():
     for task in ("Square", "NutAssembly", "Threading"):
         spec = get_task(task)
-        for v in spec.variants:
-            base = v.split("_")[0]   # D1_clutter: the D1 regions plus the obstacle
-            for oid, r in spec.regions(v).items():
-                if oid == "obstacle":
-                    continue
-                w, h, yaw = PAPER[(task, base, oid)]
-                assert round(r.x[1] - r.x[0], 3) == w and round(r.y[1] - r.y[0], 3) == h, (task, v, oid, r)
-                assert round(np.degrees(r.yaw[1] - r.yaw[0])) == yaw, (task, v, oid, r)
+        # every region of every variant (D1_clutter: the D1 regions plus the obstacle, not the paper's)
+        assert_widths_match(spec, {(v, oid): PAPER[(task, v.split("_")[0], oid)] for v in spec.variants
+                                   for oid in spec.regions(v) if oid != "obstacle"})
 
 
 def test_region_positions_follow_mimicgen_placement_initializers():

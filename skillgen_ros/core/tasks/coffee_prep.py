@@ -81,7 +81,9 @@ MUG_HANDLE_ARMS = ((-0.030, -0.022), (0.030, 0.037))
 MUG_HANDLE_POST_Y = 0.0376
 MUG_NGEOMS = 12       # ours: the wall as 12 boxes (hollow_cylinder.py's ring), the floor a disk: 16 parts in all
 MUG_DENSITY = 100.0   # coffee.py _get_mug_model: BlenderObject(density=100)
-MUG_GRASP_BELOW_TOP = 0.01   # ours: the demonstrator's fingers close across the wall, 1 cm under the rim
+# ours: the demonstrator's fingers close across the mug's body (its 7.06 cm < the hand's 8 cm), the grasp point on
+# its axis this far under the rim
+MUG_GRASP_BELOW_TOP = 0.012
 # coffee.py CoffeePreparation._check_mug_placement: upright when 1 - (the mug's z axis . world z) < 1e-3 (2.6 deg),
 # and touching the base plate geom (coffee_machine_base_g0). A SceneState has no contacts: ours is the mug's
 # bottom within MUG_CONTACT_GAP above the plate's top (the mug's margin, 0.001 in _get_mug_model: MuJoCo reports
@@ -148,9 +150,8 @@ def _volume(parts: tuple[Part, ...]) -> float:
 def mug(obj_id: str = "mug") -> ObjectSpec:
     """The ShapeNet mug 3143a4ac: 7.06 cm across, 8.05 cm tall, its handle on its +y; density 100 (11 g)."""
     parts = _mug_parts()
-    rim_y = MUG_AXIS_Y - (MUG_R_IN + MUG_R_OUT) / 2   # the wall opposite the handle
     kp = {"body_origin": (0.0, 0.0, 0.0), "axis_bottom": (0.0, MUG_AXIS_Y, MUG_BOTTOM),
-          "top": (0.0, MUG_AXIS_Y, MUG_TOP), "grasp": (0.0, rim_y, MUG_TOP - MUG_GRASP_BELOW_TOP)}
+          "top": (0.0, MUG_AXIS_Y, MUG_TOP), "grasp": (0.0, MUG_AXIS_Y, MUG_TOP - MUG_GRASP_BELOW_TOP)}
     return _build(obj_id, "mug", parts, kp, fixture=False, symmetry="none", mass=MUG_DENSITY * _volume(parts),
                   color=(0.82, 0.71, 0.55, 1.0))
 

@@ -350,6 +350,9 @@ def _run(task: TaskSpec, s: Scripter, O: dict, env, prm: ScriptParams) -> None:
         pick(s, "coffee_pod", nearest_equivalent(object_yaw(env.object_poses()[m.id]) + np.pi / 2, 0.0, np.pi))
         carry(s, "coffee_pod", _pod_into_holder(pod, m, env), pre_offset=np.array([0.0, 0.0, 0.03]))
         _close_lid(s, env.object_poses()[m.id])
+    elif task.name == "CoffeePreparation":
+        from . import scripted_coffee_prep   # its own module (it uses this one's primitives)
+        scripted_coffee_prep.run(s)
 
 
 # Coffee: the pod is let go with its bottom this far into the holder (it slides the rest of the way down); the

@@ -64,6 +64,17 @@ def _task_rules(task: str) -> dict:
         # under the hand) to the demo's end: it holds the release and the lid push that follows
         return {"skills": {0: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, 0)},
                            1: {"start_distance": 0.10, "end_event": "demo_end", "offset": _kp(task, 1)}}}
+    if task == "CoffeePreparation":
+        # the mug and the pod grasps to their grasp points; placing the mug and opening the lid (two releases) from
+        # 20 cm off the holder's rim (the mug slides in from 16 cm out, its rim 12 cm under the hand) until the hand
+        # leaves 22 cm (on its way to the drawer); the drawer from its handle to 10 steps after the release that
+        # ends the pull; the insertion as Coffee's, through the lid push to the demo's end
+        holder = [float(v) for v in get_task(task).object("coffee_machine").keypoint("holder_top")]
+        return {"skills": {0: {"start_distance": 0.06, "post_steps": 10, "offset": _kp(task, 0)},
+                           1: {"start_distance": 0.20, "end_event": "leave", "end_distance": 0.22, "offset": holder},
+                           2: {"start_distance": 0.06, "end_event": "open", "post_steps": 10, "offset": _kp(task, 2)},
+                           3: {"start_distance": 0.05, "post_steps": 10, "offset": _kp(task, 3)},
+                           4: {"start_distance": 0.10, "end_event": "demo_end", "offset": _kp(task, 4)}}}
     return {}
 
 

@@ -11,6 +11,7 @@ the command sent (see record.DemoStep).
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
@@ -19,7 +20,8 @@ from scipy.spatial.transform import Rotation
 from ..geometry import Pose
 from ..robot import ARM_JOINTS, TABLE_Z
 from ..tasks import get_task
-from ..tasks.scripted import MAX_EE_YAW, ScriptParams
+from ..tasks import scripted_coffee_prep
+from ..tasks.scripted import MAX_EE_YAW, ScriptParams, Scripter
 from .motion import DemoStyle, SmoothNoise, down_pose, ee_yaw, nearest_yaw, object_yaw, reach
 from .record import DemoRollout, DemoStep
 
@@ -37,6 +39,19 @@ PIECE_DROP = 0.008
 # from behind with the open hand at this height (machine frame z, 5.4 cm above the hinge), along machine +y
 POD_RELEASE_IN = 0.025
 LID_PUSH_Z, LID_PUSH_FROM, LID_PUSH_TO = 0.16, -0.03, 0.11
+
+
+class _PersonAsEnv:
+    """The world as scripted.Scripter drives it (scripted.py's env), every command recorded as this demo's step."""
+
+    def __init__(self, demo: "ScriptedDemonstrator", world):
+        self.demo, self.world, self.control_hz = demo, world, CONTROL_HZ
+
+    def __getattr__(self, name):   # scene, ee_pose, object_poses, object_joints, task_success
+        return getattr(self.world, name)
+
+    def step(self, pose: Pose, gripper: float) -> None:
+        self.demo._send(self.world, pose, gripper)
 
 
 class ScriptedDemonstrator:
@@ -327,9 +342,17 @@ class ScriptedDemonstrator:
         self.move(world, at(LID_PUSH_TO, LID_PUSH_Z), 2.0, tremor=0.3)
         self.retreat(world, 0.10)
 
+    def _coffee_preparation(self, world) -> None:
+        """The privileged script's five skills (core/tasks/scripted_coffee_prep.py) at this demo's pace: its speeds
+        divided by the style's slowness, its approach height and dwell times the style's (see _PersonAsEnv)."""
+        prm = replace(NOMINAL, speed=NOMINAL.speed / self.style.speed, slow_speed=NOMINAL.slow_speed / self.style.speed,
+                      approach_height=self.style.approach_height, grasp_dwell=int(self.rng.integers(10, 15)),
+                      release_dwell=int(self.rng.integers(8, 12)), settle=int(self.rng.integers(3, 7)))
+        scripted_coffee_prep.run(Scripter(_PersonAsEnv(self, world), prm, self.rng))
+
     PLANS: dict[str, Callable] = {"Square": _square, "NutAssembly": _nut_assembly, "PickPlace": _pick_place,
                                   "Threading": _threading, "ThreePieceAssembly": _three_piece_assembly,
-                                  "Coffee": _coffee}
+                                  "Coffee": _coffee, "CoffeePreparation": _coffee_preparation}
 
     def run(self, world, variant: str, scene_seed: int) -> DemoRollout:
         """Reset `world` to (task, variant, scene_seed), perform the task, return the recorded rollout."""

@@ -32,7 +32,8 @@ SEATED_Z = -C.HOLDER_HALF_H + 2 * C.HOLDER_BASE_HALF_H + C.HOLDER_BASE_OFFSET + 
 
 
 def test_registered_in_progress_with_the_papers_five_skills():
-    assert "CoffeePreparation" in IN_PROGRESS and "CoffeePreparation" not in TASK_NAMES   # no source demos yet
+    # not public yet: the estimating perception misses the pod in the closed drawer (suite.IN_PROGRESS)
+    assert "CoffeePreparation" in IN_PROGRESS and "CoffeePreparation" not in TASK_NAMES
     assert TASK.variants == ("D0", "D1") and TASK.footprint == "box"
     # SkillMimicGen appendix: grasp mug, place onto machine and open lid, open drawer, grasp pod, insert and close;
     # object_refs as MimicGen's coffee_preparation subtasks: mug, coffee_machine, drawer, coffee_pod, coffee_machine

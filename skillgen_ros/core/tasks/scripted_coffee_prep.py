@@ -121,8 +121,9 @@ def grasp_mug(s: Scripter, mug_id: str, approach: float, sign: int) -> None:
     s.lift_to(s.target.position[2] + prm.approach_height)
 
 
-def place_mug(s: Scripter, mug_id: str, machine_id: str, approach: float) -> None:
-    """Skill 2's first half: the mug onto the drip base, slid in from the front below the holder, let go."""
+def place_mug(s: Scripter, mug_id: str, machine_id: str, approach: float, sign: int) -> None:
+    """Skill 2's first half: the mug onto the drip base, slid in from the front below the holder, let go. `sign`: the
+    grasp's (side_pose), so the hand keeps the mug's handle ahead of it."""
     env, prm = s.env, s.params
     mug = next(o for o in env.scene.objects if o.id == mug_id)
     machine = next(o for o in env.scene.objects if o.id == machine_id)
@@ -130,8 +131,8 @@ def place_mug(s: Scripter, mug_id: str, machine_id: str, approach: float) -> Non
     # into its limits): un-pitch, turn, pitch again
     s.lift_to(max(s.target.position[2], _travel_z(env, prm, carried_below=MUG_HANG, exclude=(mug_id,))))
     s.move(top_down(s.target.position, ee_yaw(s.target)))
-    s.move(top_down(s.target.position, ee_yaw(side_pose(s.target.position, approach, 1))))
-    s.move(side_pose(s.target.position, approach, 1))
+    s.move(top_down(s.target.position, ee_yaw(side_pose(s.target.position, approach, sign))))
+    s.move(side_pose(s.target.position, approach, sign))
     s.hold(prm.settle)
     m, g = env.object_poses()[machine_id], env.object_poses()[mug_id]
     R = Rotation.from_euler("z", object_yaw(g))
@@ -212,7 +213,7 @@ def run(s: Scripter) -> None:
     m = env.object_poses()["coffee_machine"]
     approach_grasp, approach_place, sign = _mug_plan(env.object_poses()["mug"], m)
     grasp_mug(s, "mug", approach_grasp, sign)
-    place_mug(s, "mug", "coffee_machine", approach_place)
+    place_mug(s, "mug", "coffee_machine", approach_place, sign)
     open_lid(s, "coffee_machine")
     open_drawer(s, "drawer")
     d = env.object_poses()["drawer"]

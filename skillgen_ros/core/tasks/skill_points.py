@@ -22,8 +22,9 @@ SKILL_POINTS: dict[str, tuple[str, ...]] = {
     "Threading": ("handle", "ring_center"),
     "ThreePieceAssembly": ("grasp", "top", "grasp", "top"),
     "Coffee": ("grasp", "holder_top"),
-    # the mug on its axis 1.2 cm under the rim (grasped across its body), then the machine's drip base; the drawer at its handle (closed, as
-    # a reset leaves it), the pod 8 mm under its top, the machine at its pod holder's rim
+    # the mug on its axis 1.2 cm under the rim (grasped across its body), then the machine's drip base; the
+    # drawer at its handle (closed, as a reset leaves it), the pod 8 mm under its top, the machine at its pod
+    # holder's rim
     "CoffeePreparation": ("grasp", "base_top", "handle", "grasp", "holder_top"),
 }
 

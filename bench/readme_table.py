@@ -261,13 +261,14 @@ def render() -> str:
     cells = cell_rows()
     if cells:
         lines += [""] + cells
-    from bench.hsp.table import budget_rows, hsp_rows, observation_rows, reg_target_rows, size_rows
+    from bench.hsp.table import budget_rows, demos_rows, hsp_rows, observation_rows, reg_target_rows, size_rows
 
     hsp = hsp_rows(load("hsp"))
     if hsp:
         before = load("hsp_absolute_obs")  # the run hsp_budget3x, hsp_h200 and hsp_reg_target continued
         lines += [""] + hsp + observation_rows(before, load("hsp")) + budget_rows(before, load("hsp_budget3x"))
         lines += size_rows(before, load("hsp_budget3x"), load("hsp_h200")) + reg_target_rows(load("hsp_reg_target"))
+        lines += demos_rows(load("hsp"), load("hsp_200demos"))
     lines += ["", END]
     return "\n".join(lines)
 

@@ -160,7 +160,8 @@ def test_replay_skill_and_load_demos_reject_bad_requests_and_keep_serving(nodes)
             "no demos there": (dict(source_demos="/nonexistent/dir"), "BAG_NOT_FOUND"),
             "unknown selection": (dict(selection="bogus"), None),
             "long selection": (dict(selection="s" * 5000), "INVALID_NAME")}.items():
-        accepted, res = calls.goal(ReplaySkill, "replay_skill", _replay(**kw), probe=ReplaySkill.Goal())
+        accepted, res = calls.goal(ReplaySkill, "replay_skill", _replay(**kw), probe=ReplaySkill.Goal(),
+                                   repeat=True)  # refused at once: harmless to resend under load
         assert accepted and res is not None and not res.success, case
         assert res.reason and res.reason != "INTERNAL_ERROR" and (reason is None or res.reason == reason), \
             (case, res.reason, res.message)
@@ -208,7 +209,8 @@ def test_run_task_rejects_bad_goals_with_reasons(nodes, tmp_path):
             "junk checkpoint": (dict(task="Square", checkpoint=str(junk)), "BAD_CHECKPOINT"),
             "huge max_steps": (dict(task="Square", checkpoint=str(junk), max_steps=10**9), "INVALID_PARAMETER"),
             "long variant": (dict(task="Square", checkpoint=str(junk), variant="v" * 5000), "INVALID_NAME")}.items():
-        accepted, res = calls.goal(RunTask, "run_task", RunTask.Goal(**kw), probe=RunTask.Goal())
+        accepted, res = calls.goal(RunTask, "run_task", RunTask.Goal(**kw), probe=RunTask.Goal(),
+                                   repeat=True)  # refused at once: harmless to resend under load
         assert accepted and res is not None and not res.success, case
         assert res.reason == reason, (case, res.reason, res.message)
     _no_tracebacks(graphs)

@@ -167,3 +167,29 @@ def observation_rows(old: dict, new: dict) -> list[str]:
                        f"with each object's pose in the hand frame (robomimic's object state), same protocol: "
                        + ", ".join(parts) + ". The rows below were measured with world poses only.")
     return out
+
+
+# the paper's HSP-Class on 200 SkillGen demos (Appendix "Data scaling", Table table:scaling_mp_class)
+PAPER_CLASS_200 = {"Square/D2": 74.0}
+
+
+def demos_rows(base: dict, few: dict) -> list[str]:
+    """The same protocol on 200 demos instead of 1000 (`few`: bench/results/hsp_200demos.json) beside
+    the paper's data-scaling table, per method run on both."""
+    out = []
+    for name, c in few.get("cells", {}).items():
+        b = base.get("cells", {}).get(name, {})
+        n = c.get("datasets", {}).get("hsp", {})
+        parts = []
+        for m in METHODS:
+            mine = c.get("methods", {}).get(m, {}).get("best")
+            theirs = b.get("methods", {}).get(m, {}).get("best")
+            if not mine or not theirs:
+                continue
+            paper = f", paper {PAPER_CLASS_200[name]:g}% on 200" if m == "HSP-Class" and name in PAPER_CLASS_200 else ""
+            parts.append(f"{m} {mine['successes']}/{mine['rollouts']} vs {theirs['successes']}/{theirs['rollouts']}{paper}")
+        if parts:
+            out.append(f"- {n.get('demos', '?')} demos vs 1000, {name}, same network sizes, steps and rollouts "
+                       f"(bench/results/hsp_200demos.json; data from {n.get('attempts', '?')} attempts): "
+                       + "; ".join(parts) + ".")
+    return out

@@ -158,3 +158,35 @@ def test_the_deploy_goal_of_the_insertion_reads_the_lid():
     assert reached({lid: 0.0})
     assert not reached({lid: np.radians(20.0)})
     assert not reached(None) and not reached({})
+
+
+def test_clutter_variants_add_the_obstruction_between_robot_and_machine():
+    """The paper's Coffee (D0, Clutter) / (D1, Clutter) (its clutter table): the base variant's regions plus the
+    obstruction; box footprints keep it off the machine, and leave the D0-D2 resets as circles would."""
+    from dataclasses import replace
+
+    from skillgen_ros.core.tasks.suite import COFFEE_OBSTACLE_REGION
+    assert TASK.variants == ("D0", "D1", "D2", "D0_clutter", "D1_clutter") and TASK.footprint == "box"
+    circles = replace(TASK, footprint="circle")
+    for v in ("D0", "D1", "D2"):
+        for seed in range(40):
+            a, b = TASK.sample_reset(v, np.random.default_rng(seed)), circles.sample_reset(v, np.random.default_rng(seed))
+            assert all(np.allclose(a[k].position, b[k].position) for k in a), (v, seed)
+    holder = M.keypoint("pod_holder")
+    for v in ("D0_clutter", "D1_clutter"):
+        base = TASK.regions(v[:2])
+        assert [o.id for o in TASK.objects_for(v)] == ["coffee_machine", "coffee_pod", "obstacle"]
+        assert {k: r for k, r in TASK.regions(v).items() if k != "obstacle"} == base
+        assert TASK.regions(v)["obstacle"] == COFFEE_OBSTACLE_REGION
+        rng = np.random.default_rng(3)
+        for _ in range(30):
+            poses = TASK.sample_reset(v, rng)
+            m, pod, obs = (poses[k] for k in ("coffee_machine", "coffee_pod", "obstacle"))
+            assert all(TASK.regions(v)[k].contains(p, obj=TASK.object(k)) for k, p in poses.items())
+            for k in ("coffee_machine", "coffee_pod"):   # apart by oriented boxes
+                assert TASK._apart(TASK.object("obstacle"), *obs.position[:2],
+                                   float(Rotation.from_quat(obs.quaternion).as_euler("ZYX")[0]),
+                                   TASK.object(k), poses[k])
+            # between the robot (x < 0 in the world) and the holder
+            h = m.position[:2] + Rotation.from_quat(m.quaternion).apply(holder)[:2]
+            assert obs.position[0] < h[0] and np.linalg.norm(obs.position[:2] - pod.position[:2]) > 0.1

@@ -99,6 +99,11 @@ def _fixed(x: float, y: float, yaw: float = 0.0) -> Region:
 # the workspace" with its own distribution but gives no numbers; ours: +-4 cm x, +-6 cm y about the table
 # centre, yaw +-45 deg.
 OBSTACLE_REGION = _rs((-0.04, 0.04), (-0.06, 0.06), _deg(-45, 45))
+# Coffee's: the same 8 x 12 cm box and yaw, moved from the table centre (which D0's machine fills) toward the
+# robot until it clears the D0 machine: centred at x -0.10, y 0 about the table centre, between the robot and
+# the machine. (A box on the pod-to-holder line crowds the pod: SkillGen's grasp initiation was in collision in
+# 9-10 of 10-12 smoke attempts, and MimicGen, which pybullet lets push through, was unaffected.)
+COFFEE_OBSTACLE_REGION = _rs((-0.14, -0.06), (-0.06, 0.06), _deg(-45, 45))
 # PickPlace's own clutter obstacle region (not a paper task).
 PICKPLACE_OBSTACLE_REGION = Region((0.50, 0.58), (-0.06, 0.06), _deg(-45, 45))
 # robosuite pegs_arena.xml: peg1 (square) at (0.23, 0.1), peg2 (round) at (0.23, -0.1) from the table centre.
@@ -223,17 +228,24 @@ def _coffee() -> TaskSpec:
     # y (0.17, 0.23) z_rot 0; Coffee_D1 machine x (0.05, 0.15) y (-0.2, -0.1) z_rot (-pi/6, pi/3), pod x (-0.2, 0.05)
     # y (0.17, 0.3); Coffee_D2 machine x (-0.05, 0.05) y (0.1, 0.2) z_rot (2 pi/3, 7 pi/6), pod y (-0.3, -0.17).
     pod_xy = (-0.2, 0.05)
+    d0 = {"coffee_machine": _fixed(0.0, -0.1, -PI / 6), "coffee_pod": _rs((-0.13, -0.07), (0.17, 0.23))}
+    d1 = {"coffee_machine": _rs((0.05, 0.15), (-0.2, -0.1), (-PI / 6, PI / 3)), "coffee_pod": _rs(pod_xy, (0.17, 0.3))}
     table = {
-        "D0": {"coffee_machine": _fixed(0.0, -0.1, -PI / 6), "coffee_pod": _rs((-0.13, -0.07), (0.17, 0.23))},
-        "D1": {"coffee_machine": _rs((0.05, 0.15), (-0.2, -0.1), (-PI / 6, PI / 3)),
-               "coffee_pod": _rs(pod_xy, (0.17, 0.3))},
+        "D0": d0,
+        "D1": d1,
         "D2": {"coffee_machine": _rs((-0.05, 0.05), (0.1, 0.2), (2 * PI / 3, 7 * PI / 6)),
                "coffee_pod": _rs(pod_xy, (-0.3, -0.17))},
+        # the paper's Coffee (D0, Clutter) / (D1, Clutter): its clutter table, same source demos (D0)
+        "D0_clutter": {**d0, "obstacle": COFFEE_OBSTACLE_REGION},
+        "D1_clutter": {**d1, "obstacle": COFFEE_OBSTACLE_REGION},
     }
     # SkillMimicGen appendix "Tasks and Task Variants": grasp pod, insert-into and close machine
     skills = (SkillSpec(0, "coffee_pod", "grasp_pod", "transit"),
               SkillSpec(1, "coffee_machine", "insert_pod_and_close_lid", "transfer", "coffee_pod"))
-    return TaskSpec("Coffee", (m, pod), skills, tuple(table), table, lambda s: C.coffee_success(m, pod, s))
+    # box footprints: the machine's bounding circle (r 17 cm) would keep the obstacle far off the machine;
+    # D0-D2 resets are the same as with circles (no draw is rejected either way)
+    return TaskSpec("Coffee", (m, pod), skills, tuple(table), table, lambda s: C.coffee_success(m, pod, s),
+                    O.obstacle(), ("D0_clutter", "D1_clutter"), footprint="box")
 
 
 def _coffee_preparation() -> TaskSpec:

@@ -37,10 +37,11 @@ from skillgen_interfaces.srv import (CaptureCameras, EstimatePoses, LoadDemos, P
 from skillgen_ros.answered import detached, first_answer
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
-from skillgen_ros.core.generation.grasp import GraspTracker, beliefs_along
+from skillgen_ros.core.generation.grasp import GraspTracker, beliefs_along, unaccounted
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
+from skillgen_ros.core.tasks.suite import get_task
 from skillgen_ros.nodes import convert
 from skillgen_ros.nodes.graph_calls import GraphCallError, GraphCalls
 from skillgen_ros.nodes.latest import LatestMessage, wait_future
@@ -220,12 +221,12 @@ class RosGraphEnv(GraphCalls):
         # start-up): take new frames and retry until the perception budget is spent.
         end = time.monotonic() + self.t["perception"]
         while True:
-            resp = self._estimate_once()
+            resp, required = self._estimate_once()
             if resp.status != EstimatePoses.Response.NO_DATA or time.monotonic() > end:
                 break
             self._capture()
             time.sleep(0.05)
-        return self._take_estimates(resp)
+        return self._take_estimates(resp, required)
 
     def _capture(self) -> None:
         """Frames of the current state (the driver's capture_cameras); a driver without the
@@ -240,17 +241,20 @@ class RosGraphEnv(GraphCalls):
             self._hold_period()
 
     def _estimate_once(self):
-        held = self.grasps.holding()  # in the hand: occluded, tracked instead
-        req = EstimatePoses.Request(object_ids=[o.id for o in self.scene_objects if o.id not in (held, "obstacle")])
+        # in the hand: occluded, tracked instead; in a closed container: not required yet (TaskSpec.required_ids)
+        ids = get_task(self.task).required_ids([o.id for o in self.scene_objects], self._next_skill,
+                                               self.grasps.holding())
+        req = EstimatePoses.Request(object_ids=ids)
         if self._cloud_floor is not None:
             req.newer_than = self._cloud_floor
-        return self._call(self.estimate_cli, req, self.t["perception"], "estimate_poses", "PERCEPTION_FAILED")
+        return self._call(self.estimate_cli, req, self.t["perception"], "estimate_poses", "PERCEPTION_FAILED"), ids
 
-    def _take_estimates(self, resp) -> dict[str, Pose]:
+    def _take_estimates(self, resp, required: list[str]) -> dict[str, Pose]:
         held = self.grasps.holding()
-        if resp.status != EstimatePoses.Response.OK and not resp.poses:
-            raise SkillGenError(f"estimate_poses: {resp.status_name}: {resp.message}", reason="PERCEPTION_FAILED")
         seen = {p.id: convert.pose_from_msg(p.pose) for p in resp.poses if p.id != held}
+        # an object missed now keeps its belief; one never seen fails the estimate (grasp.unaccounted)
+        if resp.status != EstimatePoses.Response.OK and (not resp.poses or unaccounted(required, seen, self._estimates)):
+            raise SkillGenError(f"estimate_poses: {resp.status_name}: {resp.message}", reason="PERCEPTION_FAILED")
         self._estimates.update(seen)  # the hand occludes a held object; the grasp tracker knows where it is
         floor = self._cloud_floor
         self.last_estimate = (None if floor is None else ns(floor), seen)  # frames of that stamp (or newer)
@@ -270,19 +274,24 @@ class RosGraphEnv(GraphCalls):
         out = []
         ee = self.observe().ee_matrix()
         held = self.grasps.holding()
+        hidden = get_task(self.task).hidden_at(self._next_skill)  # not seen yet: no box at its true reset pose
         for o in self.scene_objects:
             m = SceneObject(id=o.id, type=o.type, mesh_uri=o.mesh_uri, half_extents=list(o.half_extents),
                             is_fixture=o.is_fixture)
             est = self.grasps.pose_now(o.id, ee) if o.id == held else self._estimates.get(o.id)
             if est is not None:
                 m.has_pose, m.pose = True, convert.pose_to_msg(est)
-            elif o.has_pose and self.collision_source == PlanToPose.Request.SOURCE_SCENE:
+            elif o.has_pose and self.collision_source == PlanToPose.Request.SOURCE_SCENE and o.id not in hidden:
                 m.has_pose, m.pose = True, o.pose
             out.append(m)
         return out
 
     def set_skill_object(self, object_id: str | None) -> None:
         self._skill_object = object_id
+
+    def set_next_skill(self, skill_index: int) -> None:
+        """The attempt's next skill (run_state's stage, and which objects perception requires)."""
+        self._next_skill = int(skill_index)
 
     _planner_extras = True
 

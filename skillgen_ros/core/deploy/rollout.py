@@ -142,6 +142,9 @@ class _Rollout:
         self.ee.append(np.asarray(obs.ee_pose, float))
 
     def estimate(self, skill) -> dict:
+        hint = getattr(self.env, "set_next_skill", None)
+        if hint is not None:  # which objects perception requires (TaskSpec.hidden_until)
+            hint(skill.index)
         try:
             poses = self.env.estimate_poses()
         except (SkillGenError, TimeoutError) as e:

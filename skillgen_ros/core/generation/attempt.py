@@ -46,7 +46,8 @@ class GenerationEnv(Protocol):
     plan_and_execute returns the planner's status (a str or an enum whose name is OK/SUCCESS,
     IK_FAILED, PLAN_FAILED, COLLISION, TIMEOUT, ...) and the observation after each executed
     control step. step() runs one 20 Hz OSC step towards an absolute target and returns the
-    observation after it. An optional `skill_succeeded(skill_index) -> bool` is used if present.
+    observation after it. An optional `skill_succeeded(skill_index) -> bool` is used if present, and
+    an optional `set_next_skill(skill_index)` is told the skill before its pose estimate.
     """
 
     def reset(self, task: str, variant: str, seed: int): ...
@@ -176,6 +177,9 @@ class _Attempt:
 
     def estimate(self, skill: SkillLike) -> np.ndarray:
         t = time.perf_counter()
+        hint = getattr(self.env, "set_next_skill", None)
+        if hint is not None:  # perception requires an object hidden at reset only from its skill on (TaskSpec.hidden_until)
+            hint(skill.index)
         try:
             poses = self.env.estimate_poses()
         except (SkillGenError, TimeoutError) as e:

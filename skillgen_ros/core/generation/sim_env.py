@@ -26,8 +26,9 @@ from ..planning.planner import Mode, MotionPlanner, PlanStatus
 from ..sim.camera import CameraConfig
 from ..sim.world import SimWorld
 from ..tasks.spec import ObjectSpec
+from ..tasks.suite import get_task
 from .episode import Observation
-from .grasp import CLOSE_PERIODS, GraspTracker
+from .grasp import CLOSE_PERIODS, GraspTracker, unaccounted
 
 PERCEPTION_MODES = ("estimate", "ground_truth")
 COLLISION_SOURCES = ("scene", "cloud")
@@ -116,6 +117,7 @@ class SimGenerationEnv:
         self._models = None
         self._last_attached: str | None = None
         self._last_support: str | None = None
+        self._next_skill = 0  # the skill whose pose estimate comes next (set_next_skill)
 
     # -- GenerationEnv
     def reset(self, task: str, variant: str, seed: int):
@@ -127,6 +129,7 @@ class SimGenerationEnv:
         self._last_attached = self._last_support = None
         self._collided = False
         self._models = None
+        self._next_skill = 0
         self.planner.reseed(seed)  # the attempt's plans depend on (reset seed, plan index) only
         return self.scene
 
@@ -157,21 +160,23 @@ class SimGenerationEnv:
         if self._models is None:
             self._models = models_for_objects([o for o in self.scene.objects if o.id != "obstacle"])
         frame = self.world.render("front")
+        required = self._required_ids()
         res = estimate_poses(frame.valid_points(), self._models, camera_position=frame.T_world_camera[:3, 3],
-                             object_ids=self._required_ids())
-        if not res.ok:
-            raise SkillGenError(f"perception: {res.status.name}: {res.message}", reason="PERCEPTION_FAILED")
+                             object_ids=required)
         held = self.grasps.holding()
         seen = {k: v.pose for k, v in res.poses.items() if k != held}
+        # as the graph path: an object missed now keeps its belief; one never seen fails the estimate
+        if not res.ok and (not res.poses or unaccounted(required, seen, self._estimates)):
+            raise SkillGenError(f"perception: {res.status.name}: {res.message}", reason="PERCEPTION_FAILED")
         self._estimates.update(seen)
         self.last_estimate = (_ns(self.world.time), seen)
         self._obstacle_cloud = res.obstacles
         return dict(self._estimates)
 
-    def _required_ids(self):
-        # Once an object is in the hand, the camera may not see it; only require objects on the table.
-        held = self.grasps.holding()
-        return [o.id for o in self.scene.objects if o.id != "obstacle" and o.id != held]
+    def _required_ids(self) -> list[str]:
+        """Objects perception must find now: not the held one, nor one still hidden (TaskSpec.required_ids)."""
+        return get_task(self.scene.task).required_ids([o.id for o in self.scene.objects], self._next_skill,
+                                                      self.grasps.holding())
 
     def current_ee_pose(self) -> Pose:
         return self.world.ee_pose()
@@ -196,9 +201,11 @@ class SimGenerationEnv:
         for o in self.scene.objects:
             if o.id == attached:
                 continue
-            pose = poses.get(o.id) or self.scene.poses.get(o.id)
+            pose = poses.get(o.id)
             if o.id == "obstacle" and self.cfg.perception != "ground_truth":
                 pose = self.scene.poses[o.id]  # scene geometry mode: the fixture map is known
+            if pose is None:  # not seen yet (hidden in the closed drawer): no box, and no true pose leaked
+                continue
             boxes += object_boxes(o, pose, self.world.object_joints())  # the sim's joint state, as the driver's topic
         self.cm.set_boxes(boxes)
         self.cm.set_point_cloud(np.empty((0, 3)))
@@ -294,6 +301,10 @@ class SimGenerationEnv:
 
     def set_skill_object(self, object_id: str | None) -> None:
         self._next_object = object_id
+
+    def set_next_skill(self, skill_index: int) -> None:
+        """The attempt's next skill: which objects its pose estimate requires (TaskSpec.hidden_until)."""
+        self._next_skill = int(skill_index)
 
     def close(self) -> None:
         self.world.close()

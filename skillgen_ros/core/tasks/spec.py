@@ -12,7 +12,7 @@ above the table top (TABLE_Z).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Mapping
+from typing import Callable, Iterable, Mapping
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -132,6 +132,9 @@ class TaskSpec:
     `footprint`: how the reset keeps sampled objects apart: "circle" (bounding circles, every task so far)
     or "box" (oriented x-y bounding boxes: Coffee Prep, whose reference sets the drawer and the machine
     closer than their bounding circles allow; robosuite checks hand-set radii there).
+    `hidden_until`: object id -> index of the first skill before which perception must find it. An object
+    that can lie inside a closed container at reset (Coffee Prep's pod in the drawer) is not visible to the
+    camera until an earlier skill opens it, so it is not required before then (required_ids).
     """
 
     name: str
@@ -143,10 +146,26 @@ class TaskSpec:
     obstacle: ObjectSpec | None = None
     clutter_variants: tuple[str, ...] = ()
     footprint: str = "circle"
+    hidden_until: Mapping[str, int] = field(default_factory=dict)
 
     def __post_init__(self):
         if self.footprint not in FOOTPRINTS:
             raise InvalidInputError(f"task {self.name}: footprint must be one of {FOOTPRINTS}, got {self.footprint!r}")
+        for oid, k in self.hidden_until.items():
+            uses = [s.index for s in self.skills if s.object_id == oid]
+            if oid not in {o.id for o in self.objects} or not uses or not 0 < k <= min(uses):
+                raise InvalidInputError(f"task {self.name}: hidden_until[{oid!r}] = {k} must name an object and a skill "
+                                        f"index in (0, its first skill {min(uses, default=None)}]")
+
+    def hidden_at(self, skill_index: int) -> frozenset[str]:
+        """Objects the camera may not see before skill `skill_index` starts (hidden_until)."""
+        return frozenset(oid for oid, k in self.hidden_until.items() if skill_index < k)
+
+    def required_ids(self, object_ids: Iterable[str], skill_index: int, held: str | None = None) -> list[str]:
+        """The objects perception must find before skill `skill_index`: the scene's, less the obstacle (unknown
+        clutter: no model), the held one (the hand occludes it; the grasp tracker has it) and the hidden ones."""
+        skip = self.hidden_at(skill_index) | {held, self.obstacle.id if self.obstacle else "obstacle"}
+        return [oid for oid in object_ids if oid not in skip]
 
     def _check_variant(self, variant: str) -> None:
         if variant not in self.variants:

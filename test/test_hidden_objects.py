@@ -1,6 +1,7 @@
 """Objects hidden in a closed container at reset (TaskSpec.hidden_until): perception requires Coffee Prep's pod
-only from its grasp skill on, after the drawer skill opened the drawer; the in-process env asks for just those,
-and its planning scene has no box for an object it has not seen (no true pose leaked into an estimating run)."""
+only from its grasp skill on, after the drawer skill opened the drawer; the in-process env and the graph env ask
+for just those, and their planning scenes have no box for an object not seen yet (no true pose leaked into an
+estimating run); an object seen before and missed now keeps its belief, one never seen fails the estimate."""
 from __future__ import annotations
 
 import numpy as np

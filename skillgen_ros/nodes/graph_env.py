@@ -37,7 +37,7 @@ from skillgen_interfaces.srv import (CaptureCameras, EstimatePoses, LoadDemos, P
 from skillgen_ros.answered import detached, first_answer
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
-from skillgen_ros.core.generation.grasp import GraspTracker, beliefs_along, unaccounted
+from skillgen_ros.core.generation.grasp import GraspTracker, beliefs_along, carriable, new_beliefs, unaccounted
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
@@ -252,10 +252,14 @@ class RosGraphEnv(GraphCalls):
     def _take_estimates(self, resp, required: list[str]) -> dict[str, Pose]:
         held = self.grasps.holding()
         seen = {p.id: convert.pose_from_msg(p.pose) for p in resp.poses if p.id != held}
-        # an object missed now keeps its belief; one never seen fails the estimate (grasp.unaccounted)
-        if resp.status != EstimatePoses.Response.OK and (not resp.poses or unaccounted(required, seen, self._estimates)):
+        # an object missed now keeps its belief; one never seen fails the estimate (grasp.unaccounted), and so
+        # does a look that failed as a whole (no table, an empty cloud)
+        if resp.status != EstimatePoses.Response.OK and (resp.status != EstimatePoses.Response.OBJECT_MISSING
+                                                         or unaccounted(required, seen, self._estimates)):
             raise SkillGenError(f"estimate_poses: {resp.status_name}: {resp.message}", reason="PERCEPTION_FAILED")
-        self._estimates.update(seen)  # the hand occludes a held object; the grasp tracker knows where it is
+        # the hand occludes a held object (the grasp tracker knows where it is); fixtures keep their first estimate
+        fixtures = {o.id for o in get_task(self.task).objects if o.is_fixture}
+        self._estimates.update(new_beliefs(seen, self._estimates, fixtures))
         floor = self._cloud_floor
         self.last_estimate = (None if floor is None else ns(floor), seen)  # frames of that stamp (or newer)
         return dict(self._estimates)
@@ -374,14 +378,15 @@ class RosGraphEnv(GraphCalls):
             steps["object_poses"] = self._beliefs_along(steps)
         # after a skill: a hand closed on the skill's object holds it rigidly; one let go stays where left
         self._estimates.update(self.grasps.after_skill(steps["actions_abs"][:, 7], steps["ee_poses"],
-                                                       self._skill_object, self._estimates))
+                                                       carriable(self.task, self._skill_object), self._estimates))
         return steps, bool(r.success), r.reason, r.message
 
     def _beliefs_along(self, steps) -> list[dict]:
         """The belief before each skill step (grasp.beliefs_along), as SimGenerationEnv tracks it."""
         held = self.grasps.holding()
         return beliefs_along(self._estimates, None if held is None else (held, self.grasps.object_in_ee(held)),
-                             self._skill_object, [Pose.from_array(e).matrix() for e in steps["ee_poses"]],
+                             carriable(self.task, self._skill_object),
+                             [Pose.from_array(e).matrix() for e in steps["ee_poses"]],
                              steps["actions_abs"][:, 7])
 
     def step(self, target: Pose, gripper: float) -> Observation:

@@ -23,6 +23,7 @@ from std_msgs.msg import String
 
 from skillgen_interfaces.msg import ObjectPoseArray, SceneObject
 from skillgen_ros.core.errors import SkillGenError
+from skillgen_ros.core.generation.grasp import carriable
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.tasks import get_task
 from skillgen_ros.nodes import convert
@@ -124,7 +125,7 @@ class HspGraphEnv(RosGraphEnv):
         self._last_gripper = gripper
         if self._closing > 0:
             self._closing -= 1
-            obj = self._skill_object
+            obj = carriable(self.task, self._skill_object)  # a fixture's link does not carry the fixture
             if self._closing == 0 and obj:
                 poses = self.true_object_poses() if self.grasp_reference == "ground_truth" else self._estimates
                 if obj in poses:

@@ -18,6 +18,10 @@ task the service answers NO_SCENE.
 mode = "estimate" (default) estimates from the cloud. mode = "ground_truth" answers with the sim's
 `sim/ground_truth/object_poses` instead: an explicit ablation chosen by parameter, never a
 fallback; its status is NO_DATA until ground truth has arrived.
+
+For a task with articulated objects the node reads the driver's `object_joint_states` (latched), so that
+an object inside a fixture it found (Coffee Prep's pod in the opened drawer) is looked for again without
+the fixture's points, its links posed at those values (core/perception/fixtures.py).
 """
 from __future__ import annotations
 
@@ -38,11 +42,12 @@ from skillgen_interfaces.msg import ObjectPose, ObjectPoseArray, PhaseTiming
 from skillgen_interfaces.srv import EstimatePoses
 from skillgen_ros.core import validation as V
 from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
+from skillgen_ros.core.perception.fixtures import estimate_with_fixtures
 from skillgen_ros.core.perception.models import models_for_objects
-from skillgen_ros.core.perception.pipeline import (EstimatedPose, PerceptionParams, PerceptionStatus,
-                                                   estimate_poses)
+from skillgen_ros.core.perception.pipeline import EstimatedPose, PerceptionParams, PerceptionStatus
 from skillgen_ros.core.perception.pose import PoseParams
 from skillgen_ros.nodes.convert import cloud_to_points, points_to_cloud, pose_from_msg, pose_to_msg
+from skillgen_ros.nodes.driver_joints import ObjectJointReader
 from skillgen_ros.nodes.latest import LatestMessage
 from skillgen_ros.nodes.runtime import run_node
 
@@ -82,6 +87,8 @@ class PerceptionNode(Node):
         self._models: dict = {}
         self._model_cache: dict[str, dict] = {}  # task -> its object models
         self._task = ""
+        self._object_joints: ObjectJointReader | None = None  # the driver's object_joint_states, on first need
+        self._fixture_poses: dict = {}  # fixtures' poses seen in this scene (core/perception/fixtures.py)
         self._read_params()
         self.add_on_set_parameters_callback(self._on_params)
 
@@ -176,6 +183,8 @@ class PerceptionNode(Node):
             self._truth = msg
 
     def _on_set_task(self, msg: String) -> None:
+        with self._lock:
+            self._fixture_poses = {}  # sent after every reset_scene: a new scene
         try:
             if self._set_task(msg.data):
                 self.get_logger().info(f"task set to {self._task!r}")
@@ -247,7 +256,18 @@ class PerceptionNode(Node):
         if self._fresh(wrist):
             if wrist.header.frame_id == self.world_frame:
                 pts = np.concatenate([pts, cloud_to_points(wrist)])
-        r = estimate_poses(pts, models, self.params, camera, object_ids or None)
+        from skillgen_ros.core.tasks import get_task  # task suite: pure, no pybullet
+        specs = {o.id: o for o in get_task(task).objects}
+        joints = None
+        if any(o.joints for o in specs.values()):  # an object inside a fixture (core/perception/fixtures.py)
+            if self._object_joints is None:
+                self._object_joints = ObjectJointReader(self)
+            joints = self._object_joints.values()
+        with self._lock:
+            known = dict(self._fixture_poses)
+        r = estimate_with_fixtures(pts, models, specs, self.params, camera, object_ids or None, joints, known=known)
+        with self._lock:  # fixtures do not move: kept until the next perception/set_task (a new scene)
+            self._fixture_poses.update({i: e.pose for i, e in r.poses.items() if specs[i].is_fixture})
         return r.status, r.message, r.poses, r.obstacles, r.timings
 
 

@@ -58,8 +58,8 @@ from skillgen_interfaces.action import ExecuteTrajectory
 from skillgen_interfaces.msg import PhaseTiming
 from skillgen_interfaces.srv import PlanToPose
 from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
-from skillgen_ros.core.geometry import Pose, validate_pose
-from skillgen_ros.core.planning.articulated import box_points, scene_link_boxes
+from skillgen_ros.core.geometry import validate_pose
+from skillgen_ros.core.planning.articulated import box_points, scene_link_boxes, support_below
 from skillgen_ros.core.planning.collision import HIDDEN_REFINE, SHADOW_PX, AttachedObject, Box, CollisionModel
 from skillgen_ros.core.planning.ik import IKSolver
 from skillgen_ros.core.planning.kinematics import PandaKinematics
@@ -327,17 +327,18 @@ class PlannerNode(Node):
         manipulated = req.manipulated_object or None
         if manipulated is not None and manipulated not in boxes:
             raise InvalidInputError(f"manipulated object {manipulated!r} not in the scene")
-        released = _containing(obstacles, T0[:3, 3])
+        parts = list(obstacles.values()) + links  # an articulated object's links too: an opened drawer's tray
+        released = _containing(parts, T0[:3, 3])
         start_support = goal_support = "table"
         if attached is not None:
-            start_support = _support(obstacles, boxes[attached.name].pose[:3, 3]) or "table"
+            start_support = support_below(parts, boxes[attached.name].pose[:3, 3]) or "table"
             T_obj_goal = target.matrix() @ (np.linalg.inv(T0) @ boxes[attached.name].pose)
-            goal_support = _support(obstacles, T_obj_goal[:3, 3]) or "table"
+            goal_support = support_below(parts, T_obj_goal[:3, 3]) or "table"
         released_support = None
         if released is not None:  # what it was put on or into (a peg through a nut, a bin)
-            others = {k: b for k, b in obstacles.items() if k != released}
+            others = [b for b in parts if b.name != released]
             c = obstacles[released].pose[:3, 3]
-            released_support = _containing(others, c) or _support(others, c)
+            released_support = _containing(others, c) or support_below(others, c)
         seed = (int(req.seed), int(req.plan_index)) if req.seeded else None
         result = self.planner.plan(q0, target, mode, attached, manipulated, released,
                                    start_support, goal_support, timeout, released_support=released_support,
@@ -369,23 +370,12 @@ def _timing(phase: str, seconds: float) -> PhaseTiming:
     return PhaseTiming(phase=phase, seconds=float(seconds))
 
 
-def _containing(boxes: dict[str, Box], point, pad: float = 0.02) -> str | None:
-    for name, b in boxes.items():
+def _containing(boxes: list[Box], point, pad: float = 0.02) -> str | None:
+    """The name of the first box holding `point` (within `pad`)."""
+    for b in boxes:
         if b.contains(np.asarray(point, float)[None], pad)[0]:
-            return name
+            return b.name
     return None
-
-
-def _support(boxes: dict[str, Box], centre, depth: float = 0.15) -> str | None:
-    """The box right below `centre` (within `depth`), i.e. what an object there rests on."""
-    best, best_top = None, -np.inf
-    for name, b in boxes.items():
-        local = (np.asarray(centre) - b.pose[:3, 3]) @ b.pose[:3, :3]
-        top = b.pose[2, 3] + np.abs(b.pose[2, :3]) @ b.half_extents
-        if np.all(np.abs(local[:2]) <= b.half_extents[:2] + 0.01) and centre[2] - depth < top < centre[2] + 0.01:
-            if top > best_top:
-                best, best_top = name, top
-    return best
 
 
 def main(args=None) -> int:

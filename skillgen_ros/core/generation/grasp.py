@@ -108,3 +108,23 @@ def unaccounted(required, seen, believed) -> list[str]:
     before keeps its belief (where it was seen or let go) when the view misses it now, e.g. Coffee Prep's mug
     set in the machine's holder under the opened lid; the attempt still needs its skill's object in the result."""
     return [i for i in required if i not in seen and i not in believed]
+
+
+def new_beliefs(seen, believed, fixtures) -> dict:
+    """What an estimate adds to the beliefs: every object seen now, but a fixture (a drawer, a machine) keeps
+    its first estimate, made before anything in the scene moved: fixtures do not move, and a later look can
+    fit their shut-at-reset models to an opened drawer or lid wrongly (Coffee Prep: 10-23 cm off)."""
+    return {k: v for k, v in seen.items() if not (k in fixtures and k in believed)}
+
+
+def carriable(task: str, object_id: str | None) -> str | None:
+    """`object_id` if the hand can carry it, else None: a fixture stays put when the hand closes on one of its
+    links (Coffee Prep's drawer pulled by its handle, the machine's lid swung open), so its belief must not
+    follow the hand (it did: the drawer's 23 cm off, the machine's 10 cm, and the pod and the lid missed)."""
+    from ..tasks.suite import get_task
+
+    if not object_id:
+        return None
+    spec = get_task(task)
+    obj = next((o for o in spec.objects if o.id == object_id), None)
+    return None if obj is not None and obj.is_fixture else object_id

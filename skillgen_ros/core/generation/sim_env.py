@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import InvalidInputError, SkillGenError
 from ..geometry import Pose
-from ..planning.articulated import link_boxes, part_box
+from ..planning.articulated import link_boxes, part_box, support_below
 from ..planning.collision import AttachedObject, Box, CollisionModel
 from ..planning.occlusion import DepthView
 from ..planning.ik import IKSolver
@@ -28,7 +28,7 @@ from ..sim.world import SimWorld
 from ..tasks.spec import ObjectSpec
 from ..tasks.suite import get_task
 from .episode import Observation
-from .grasp import CLOSE_PERIODS, GraspTracker, unaccounted
+from .grasp import CLOSE_PERIODS, GraspTracker, carriable, new_beliefs, unaccounted
 
 PERCEPTION_MODES = ("estimate", "ground_truth")
 COLLISION_SOURCES = ("scene", "cloud")
@@ -117,6 +117,7 @@ class SimGenerationEnv:
         self._models = None
         self._last_attached: str | None = None
         self._last_support: str | None = None
+        self._last_skill_object: str | None = None  # the object of a skill that started from a transit
         self._next_skill = 0  # the skill whose pose estimate comes next (set_next_skill)
 
     # -- GenerationEnv
@@ -126,7 +127,7 @@ class SimGenerationEnv:
         self.last_estimate = None
         self.grasps.clear()
         self._last_gripper, self._closing = -1.0, -1
-        self._last_attached = self._last_support = None
+        self._last_attached = self._last_support = self._last_skill_object = None
         self._collided = False
         self._models = None
         self._next_skill = 0
@@ -154,21 +155,25 @@ class SimGenerationEnv:
             self._estimates = self.world.object_poses()
             self.last_estimate = (_ns(self.world.time), dict(self._estimates))
             return dict(self._estimates)
+        from ..perception.fixtures import estimate_with_fixtures
         from ..perception.models import models_for_objects
-        from ..perception.pipeline import estimate_poses
+        from ..perception.pipeline import PerceptionStatus
 
         if self._models is None:
             self._models = models_for_objects([o for o in self.scene.objects if o.id != "obstacle"])
         frame = self.world.render("front")
         required = self._required_ids()
-        res = estimate_poses(frame.valid_points(), self._models, camera_position=frame.T_world_camera[:3, 3],
-                             object_ids=required)
+        res = estimate_with_fixtures(frame.valid_points(), self._models, {o.id: o for o in self.scene.objects},
+                                     camera_position=frame.T_world_camera[:3, 3], object_ids=required,
+                                     joints=self.world.object_joints(), known=self._estimates)
         held = self.grasps.holding()
         seen = {k: v.pose for k, v in res.poses.items() if k != held}
-        # as the graph path: an object missed now keeps its belief; one never seen fails the estimate
-        if not res.ok and (not res.poses or unaccounted(required, seen, self._estimates)):
+        # as the graph path: an object missed now keeps its belief; one never seen fails the estimate, and
+        # so does a look that failed as a whole (no table, an empty cloud)
+        if not res.ok and (res.status is not PerceptionStatus.OBJECT_MISSING
+                           or unaccounted(required, seen, self._estimates)):
             raise SkillGenError(f"perception: {res.status.name}: {res.message}", reason="PERCEPTION_FAILED")
-        self._estimates.update(seen)
+        self._estimates.update(new_beliefs(seen, self._estimates, {o.id for o in self.scene.objects if o.is_fixture}))
         self.last_estimate = (_ns(self.world.time), seen)
         self._obstacle_cloud = res.obstacles
         return dict(self._estimates)
@@ -211,6 +216,16 @@ class SimGenerationEnv:
         self.cm.set_point_cloud(np.empty((0, 3)))
         return self._attachment(attached, poses)
 
+    def _support_of(self, attached: str | None) -> str:
+        """What the held object rests on as the transfer starts (a drawer's tray under Coffee Prep's pod), as
+        the planner node finds it: the part right below the object's believed pose, else the table."""
+        poses = dict(self.world.object_poses()) if self.cfg.perception == "ground_truth" else dict(self._estimates)
+        if attached not in poses:
+            return "table"
+        boxes = [b for o in self.scene.objects if o.id != attached and o.id in poses
+                 for b in object_boxes(o, poses[o.id], self.world.object_joints())]
+        return support_below(boxes, poses[attached].position) or "table"
+
     def _attachment(self, attached: str | None, poses) -> AttachedObject | None:
         if not attached:
             return None
@@ -225,16 +240,20 @@ class SimGenerationEnv:
     def plan_and_execute(self, target: Pose, mode: str, attached: str | None):
         skill_object = self._next_object
         att = self._planning_scene(skill_object, attached if mode == "transfer" else None)
-        # Transit after a place: the hand may still touch what it just released (retreat only).
-        released = self._last_attached if mode == "transit" else None
+        # Transit after a place: the hand may still touch what it just released (retreat only); after a
+        # skill that held nothing (a drawer opened by its handle), the object that skill worked on, as the
+        # planner node's "object whose box holds the start EE" (nodes/planner.py)
+        released = (self._last_attached or self._last_skill_object) if mode == "transit" else None
         released_support = self._last_support if mode == "transit" else None
         res = self.planner.plan(self.world.joint_positions(), target, Mode(mode), attached=att,
                                 manipulated=skill_object if mode == "transit" else None, released=released,
                                 released_support=released_support,
-                                start_support="table", goal_support=skill_object,
+                                start_support=self._support_of(attached) if mode == "transfer" else "table",
+                                goal_support=skill_object,
                                 timeout=self.cfg.plan_timeout, extras=self._planner_extras)
         self._last_attached = attached if mode == "transfer" else None
         self._last_support = skill_object if mode == "transfer" else None
+        self._last_skill_object = skill_object if mode == "transit" else None
         self.last_plan = res
         if res.status is not PlanStatus.SUCCESS:
             return res.status.name, []
@@ -278,7 +297,7 @@ class SimGenerationEnv:
         self._last_gripper = gripper
         if self._closing > 0:
             self._closing -= 1
-            if self._closing == 0 and self._next_object:
+            if self._closing == 0 and carriable(self.scene.task, self._next_object):
                 poses = self.world.object_poses() if self.cfg.perception == "ground_truth" else self._estimates
                 if self._next_object in poses:
                     self.grasps.grasped(self._next_object, poses[self._next_object].matrix(),

@@ -104,6 +104,9 @@ def _fail(status: PerceptionStatus, message: str, timings: dict, table=None) -> 
     return PerceptionResult(status, message, {}, np.zeros((0, 3)), table=table, timings=timings)
 
 
+ELEVATED = 0.015  # m: a cluster whose lowest point is this far above the table rests on something else
+
+
 def _compatible(cluster: np.ndarray, plane: cloud.Plane, model: ObjectModel, margin: float,
                 upright: bool = True) -> bool:
     """Cheap size gate: a cluster much wider or taller than the model is not that model
@@ -111,7 +114,10 @@ def _compatible(cluster: np.ndarray, plane: cloud.Plane, model: ObjectModel, mar
     if not upright:
         return float(np.linalg.norm(cluster.max(axis=0) - cluster.min(axis=0))) <= model.diameter + margin
     h = plane.signed_distance(cluster)
-    if h.max() > (model.hi[2] - model.lo[2]) + margin:
+    # a cluster off the table (on a shelf or a drawer's tray) is gated on its own height, one that
+    # reaches the table on its top's height above it (the part under it may be hidden)
+    base = h.min() if h.min() > ELEVATED else 0.0
+    if h.max() - base > (model.hi[2] - model.lo[2]) + margin:
         return False
     flat = cluster - np.outer(h, plane.normal)
     ext = flat.max(axis=0) - flat.min(axis=0)

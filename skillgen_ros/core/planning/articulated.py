@@ -57,3 +57,16 @@ def scene_link_boxes(articulated: Mapping[str, object], boxes: Mapping[str, Box]
     object frame) and the joint values; `skip` (the held object) and objects without a box get none."""
     return [b for oid, obj in articulated.items() if oid in boxes and oid != skip
             for b in link_boxes(obj, Pose.from_matrix(boxes[oid].pose), joints)]
+
+
+def support_below(boxes, centre, depth: float = 0.15) -> str | None:
+    """The name of the box right below `centre` (within `depth`): what an object there rests on (a peg, a bin,
+    a drawer's tray; the table is not a box). The highest such top wins."""
+    best, best_top = None, -np.inf
+    c = np.asarray(centre, float)
+    for b in boxes:
+        local = (c - b.pose[:3, 3]) @ b.pose[:3, :3]
+        top = b.pose[2, 3] + np.abs(b.pose[2, :3]) @ b.half_extents
+        if np.all(np.abs(local[:2]) <= b.half_extents[:2] + 0.01) and c[2] - depth < top < c[2] + 0.01 and top > best_top:
+            best, best_top = b.name, top
+    return best

@@ -1,0 +1,78 @@
+"""What an attempt believes about fixtures (Coffee Prep's drawer and machine): the hand closing on a link does not
+carry the fixture, a fixture keeps its first estimate, a held object's start support can be a fixture's part,
+and a look that misses every required object still passes when each was seen before; one that failed as a
+whole (no table, an empty cloud) does not. Both envs (in-process and graph) follow the same rules."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from skillgen_ros.core.generation.grasp import carriable, new_beliefs
+from skillgen_ros.core.planning.articulated import support_below
+from skillgen_ros.core.planning.collision import Box
+
+
+def test_a_fixtures_link_does_not_carry_the_fixture():
+    assert carriable("CoffeePreparation", "drawer") is None          # pulled by its handle
+    assert carriable("CoffeePreparation", "coffee_machine") is None  # its lid swung open
+    assert carriable("CoffeePreparation", "mug") == "mug"
+    assert carriable("Square", "square_nut") == "square_nut"
+    assert carriable("Square", None) is None and carriable("Square", "") is None
+
+
+def test_a_fixture_keeps_its_first_estimate():
+    first, later = np.eye(4), np.eye(4) + 1
+    believed = {"drawer": first, "mug": first}
+    seen = {"drawer": later, "mug": later, "coffee_machine": later}
+    got = new_beliefs(seen, believed, {"drawer", "coffee_machine"})
+    assert set(got) == {"mug", "coffee_machine"}        # the drawer keeps `first`; a fixture seen first is taken
+    assert new_beliefs(seen, {}, {"drawer"}) == seen
+
+
+def test_the_support_below_a_held_object_is_the_highest_top_under_it():
+    tray = Box("drawer", np.block([[np.eye(3), np.array([[0.7], [0.0], [0.05]])], [np.zeros((1, 3)), np.ones((1, 1))]]),
+               np.array([0.1, 0.1, 0.005]))
+    shelf = Box("cabinet", np.block([[np.eye(3), np.array([[0.7], [0.0], [0.0]])], [np.zeros((1, 3)), np.ones((1, 1))]]),
+                np.array([0.2, 0.2, 0.01]))
+    assert support_below([shelf, tray], [0.72, 0.02, 0.08]) == "drawer"      # the tray's top, 2.5 cm below
+    assert support_below([shelf, tray], [0.85, 0.0, 0.04]) == "cabinet"      # off the tray, over the shelf
+    assert support_below([shelf, tray], [0.72, 0.02, 0.30]) is None          # 25 cm up: rests on nothing
+    assert support_below([], [0.0, 0.0, 0.0]) is None
+
+
+@pytest.fixture()
+def graph_env(ros_node):
+    from skillgen_interfaces.msg import SceneObject
+    from skillgen_interfaces.srv import PlanToPose
+    from skillgen_ros.nodes.datagen import TIMEOUTS
+    from skillgen_ros.nodes.graph_env import RosGraphEnv
+
+    env = RosGraphEnv(ros_node, TIMEOUTS, collision_source=PlanToPose.Request.SOURCE_SCENE)
+    env.task = "CoffeePreparation"
+    env.scene_objects = [SceneObject(id=i, type=i, half_extents=[0.05] * 3, has_pose=True)
+                         for i in ("drawer", "coffee_machine", "mug", "coffee_pod")]
+    return env
+
+
+def _answer(status: int, ids=()):
+    from skillgen_interfaces.msg import ObjectPose
+    from skillgen_interfaces.srv import EstimatePoses
+
+    r = EstimatePoses.Response(status=status, poses=[ObjectPose(id=i) for i in ids])
+    r.status_name = {0: "OK", 1: "EMPTY_CLOUD", 3: "OBJECT_MISSING"}[status]
+    return r
+
+
+def test_the_graph_env_keeps_beliefs_when_a_look_misses_everything_seen_before(graph_env):
+    from skillgen_ros.core.errors import SkillGenError
+
+    answers = iter([_answer(3, ("drawer", "coffee_machine", "mug")), _answer(3), _answer(1)])
+    graph_env._call = lambda *a, **k: next(answers)
+    graph_env.set_next_skill(0)
+    first = graph_env.estimate_poses()
+    assert set(first) == {"drawer", "coffee_machine", "mug"}
+    graph_env.set_next_skill(1)
+    assert graph_env.estimate_poses() == first          # nothing seen now, everything believed: goes on
+    with pytest.raises(SkillGenError) as e:             # the look failed as a whole (empty cloud)
+        graph_env.estimate_poses()
+    assert e.value.reason == "PERCEPTION_FAILED"

@@ -120,7 +120,7 @@ def new_beliefs(seen, believed, fixtures) -> dict:
 def carriable(task: str, object_id: str | None) -> str | None:
     """`object_id` if the hand can carry it, else None: a fixture stays put when the hand closes on one of its
     links (Coffee Prep's drawer pulled by its handle, the machine's lid swung open), so its belief must not
-    follow the hand (it did: the drawer's 23 cm off, the machine's 10 cm, and the pod and the lid missed)."""
+    follow the hand (it did: Coffee Prep's drawer belief ended 23 cm off, the machine's 10 cm)."""
     from ..tasks.suite import get_task
 
     if not object_id:

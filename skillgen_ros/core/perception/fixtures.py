@@ -6,8 +6,8 @@ pod is reported missing. The fixture's model cannot explain the tray either, sin
 at their reset values (the drawer shut). The scene knows better: the fixture's pose was just
 estimated, and its joint values come from the driver (`object_joint_states`) or the sim. So, when a
 required object is missing and an articulated fixture was found, its parts and links are posed at the
-current joint values, the points inside them (plus a few mm) are dropped, and only the missing
-objects are looked for again. An opened drawer is itself not found (its model shows it shut), so a
+current joint values, the points inside them (plus a few mm) are dropped, and every movable object is
+identified again in what is left. An opened drawer is itself not found (its model shows it shut), so a
 fixture seen before lends its earlier pose (`known`: fixtures do not move; the caller keeps them per
 scene). On Coffee Prep D0 seeds 0-2 with the drawer 20 cm open this finds the
 pod within 1 mm; without the removal it is missing in all three.

@@ -286,9 +286,9 @@ def _coffee_preparation() -> TaskSpec:
 _BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_assembly, "Threading": _threading,
              "ThreePieceAssembly": _three_piece_assembly, "Coffee": _coffee, "CoffeePreparation": _coffee_preparation}
 # Tasks get_task builds that are not public yet (issue 20). CoffeePreparation has its scripted solution
-# (scripted_coffee_prep.py) and shipped source demos (bags/CoffeePreparation), and the estimating perception no longer
-# requires the pod at reset (hidden_until), but it cannot find the pod in the opened drawer either (its points join
-# the tray's cluster), so generation with it fails at skill 3 (PERCEPTION_FAILED; with ground-truth poses it runs).
+# (scripted_coffee_prep.py) and shipped source demos (bags/CoffeePreparation), and generation runs all five skills
+# with estimated poses (D0 3-5 of 10 attempts, D1 1 of 10: docs/tasks.md), but D1's mug placement, its 200-attempt
+# cells, the graph path's rate and its per-task suite tests are not done.
 # The simulator, driver, planner, `skillgen demos make` and `skillgen annotate` take
 # them; `skillgen generate`, datagen and the per-task checks over TASK_NAMES do not, until they do.
 IN_PROGRESS: tuple[str, ...] = ("CoffeePreparation",)

@@ -178,6 +178,16 @@ def _cells(dg: dict) -> list[dict]:
     return [c for c in dg.get("cells", []) if "profile" in c]
 
 
+def _cell_set(part: str, cells: list[str]) -> str:
+    """Which cells an average covers, named by their tasks ("Square/Coffee D0-D2 cells run")."""
+    from bench.datagen.summary import CORE_TASKS
+
+    if part == "clutter":
+        return "clutter cells"
+    tasks = [t for t in CORE_TASKS if any(c.split()[0] == t for c in cells)] or list(CORE_TASKS)
+    return f"{'/'.join(tasks)} D0-D2 cells run"
+
+
 def generation_rows(dg: dict) -> list[tuple[str, str, str, str]]:
     """Success averages over cells both sides have, each beside the paper's mean over those cells."""
     from bench.datagen.summary import summarize
@@ -189,9 +199,10 @@ def generation_rows(dg: dict) -> list[tuple[str, str, str, str]]:
         for key in ("skillgen", "mimicgen", "skillgen+IA"):
             if prof != "paper" and key == "mimicgen":
                 continue  # the same runs as under the paper profile
-            for part, what in (("core", "Square/Threading/NutAssembly/ThreePieceAssembly D0-D2 cells run"), ("clutter", "clutter cells")):
+            for part in ("core", "clutter"):
                 g = get(s, f"{prof}.{key}.{part}", {}) or {}
                 n = len(g.get("cells", []))
+                what = _cell_set(part, g.get("cells", []))
                 ours = "not run" if g.get("ours") is None else f"{g['ours']:.1f}% ({n} cells)"
                 paper = "" if g.get("paper") is None else f"{g['paper']:.1f}% (same {n} cells)"
                 out.append((f"generation success, {key}, {PROFILE_LABEL[prof]}, {what}", ours, paper, "datagen"))

@@ -11,13 +11,17 @@ finished starting.
 
 `clean_zombie_files()` removes only files whose lock nobody holds, the rule Fast DDS's own tool
 uses; a file a live process uses is never touched. The test harness and `skillgen launch` call it
-before they start nodes. Pure: no rclpy.
+before they start nodes. Nor is a file younger than `min_age_s` (60 s): a process that is starting
+has created its lock file but may not hold it yet, and two graphs launched together (two Ray
+graph-mode workers, test_distributed_action) cleaned each other's fresh ports in that gap; the
+spin above came back in both nodes of one worker (2026-12-04). Pure: no rclpy.
 """
 from __future__ import annotations
 
 import fcntl
 import os
 import re
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -56,8 +60,22 @@ def _unlink(path: Path) -> None:
         pass
 
 
-def clean_zombie_files(shm_dir: Path = SHM_DIR) -> ShmCleanup:
-    """Remove the Fast DDS ports and segments in `shm_dir` whose lock files no live process holds."""
+MIN_AGE_S = 60.0  # s: a port or segment younger than this may belong to a process still starting
+
+
+def _young(paths, now: float, min_age_s: float) -> bool:
+    for p in paths:
+        try:
+            if now - p.stat().st_mtime < min_age_s:
+                return True
+        except OSError:
+            pass
+    return False
+
+
+def clean_zombie_files(shm_dir: Path = SHM_DIR, min_age_s: float = MIN_AGE_S) -> ShmCleanup:
+    """Remove the Fast DDS ports and segments in `shm_dir` whose lock files no live process holds and
+    that are at least `min_age_s` old (module docstring)."""
     try:
         names = os.listdir(shm_dir)
     except OSError:
@@ -67,8 +85,10 @@ def clean_zombie_files(shm_dir: Path = SHM_DIR) -> ShmCleanup:
         if _PORT_LOCK.match(name) or _SEGMENT_LOCK.match(name):
             locks.setdefault(name[:-3], []).append(name)
     removed = in_use = 0
+    now = time.time()
     for base, lock_names in sorted(locks.items()):
-        if any(_held(shm_dir / n) for n in lock_names):
+        files = [shm_dir / base] + [shm_dir / n for n in lock_names]
+        if _young(files, now, min_age_s) or any(_held(shm_dir / n) for n in lock_names):
             in_use += 1
             continue
         _unlink(shm_dir / base)

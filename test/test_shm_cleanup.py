@@ -12,6 +12,8 @@ def test_only_files_no_live_process_holds_are_removed(tmp_path):
               f"sem.{port_live}_mutex", port_dead, f"{port_dead}_el", f"sem.{port_dead}_mutex",
               "lttng-ust-wait-6", "fastrtps_port9_orphan"):
         (tmp_path / f).write_bytes(b"")
+    for f in os.listdir(tmp_path):  # killed a while ago
+        os.utime(tmp_path / f, (1e9, 1e9))
     held = []
     for lock, mode in ((f"{seg_live}_el", fcntl.LOCK_EX), (f"{port_live}_sl", fcntl.LOCK_SH)):
         fd = os.open(tmp_path / lock, os.O_RDONLY)  # what the owning process does while it lives
@@ -31,3 +33,15 @@ def test_only_files_no_live_process_holds_are_removed(tmp_path):
 def test_a_missing_directory_is_nothing_to_clean(tmp_path):
     got = clean_zombie_files(tmp_path / "none")
     assert (got.removed, got.in_use) == (0, 0)
+
+
+def test_fresh_files_are_kept_though_not_held_yet(tmp_path):
+    """A starting process has created its port but may not hold the lock yet: a launch beside it (two Ray
+    graph workers) must not remove it."""
+    for f in ("fastrtps_port7002", "fastrtps_port7002_el", "fastrtps_0123456789abcdef", "fastrtps_0123456789abcdef_el"):
+        (tmp_path / f).write_bytes(b"")
+    os.utime(tmp_path / "fastrtps_0123456789abcdef", (1e9, 1e9))   # the segment old, its lock fresh: kept
+    got = clean_zombie_files(tmp_path)
+    assert (got.removed, got.in_use) == (0, 2) and len(os.listdir(tmp_path)) == 4
+    got = clean_zombie_files(tmp_path, min_age_s=0.0)
+    assert (got.removed, got.in_use) == (2, 0) and os.listdir(tmp_path) == []

@@ -61,7 +61,9 @@ RESPAWN_MAX = 10  # restarts per node before --respawn gives up on it (a crash l
 
 
 def default_log_dir(graph: str) -> str:
-    return os.path.join("logs", f"{graph}_{time.strftime('%Y%m%dT%H%M%S', time.gmtime())}")
+    """logs/<graph>_<UTC second>_<pid>: two graphs launched in the same second (two Ray graph-mode workers)
+    no longer share, and interleave, one set of node logs."""
+    return os.path.join("logs", f"{graph}_{time.strftime('%Y%m%dT%H%M%S', time.gmtime())}_{os.getpid()}")
 
 
 def launch(graph: str, extra_ros_args: list[str] | None = None, poll: float = 0.1, stop_timeout: float = 15.0,

@@ -3,7 +3,7 @@
 A cell is one (task, variant, method, augment, profile). Averages against the paper are taken only
 over cells both sides have, each beside the paper's mean over the same cells:
 - core: the paper's simulation variants we also run (Square, Threading, Nut Assembly, Three Piece Assembly,
-  Coffee x D0-D2; the paper's 18 add Coffee Prep, which this project does not have yet).
+  Coffee x D0-D2; the paper's 18 add Coffee Prep, which has no cells here yet).
   The paper's own 18-variant averages (PAPER_18_AVERAGE) are quoted only as such.
 - clutter: the paper's clutter rows (Square D1/D2 clutter), never mixed into core.
 - margin: skillgen minus MimicGen over Square, Threading and Nut Assembly D1-D2 (paper: 80.1 vs

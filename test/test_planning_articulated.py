@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skillgen_ros.core.generation.sim_env import object_boxes
+from skillgen_ros.core.planning.articulated import object_boxes
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.articulated import link_boxes
 from skillgen_ros.core.planning.collision import CollisionModel

@@ -17,8 +17,8 @@ import numpy as np
 
 from ..errors import InvalidInputError, SkillGenError
 from ..geometry import Pose
-from ..planning.articulated import link_boxes, part_box, support_below
-from ..planning.collision import AttachedObject, Box, CollisionModel
+from ..planning.articulated import object_boxes, part_boxes, support_below
+from ..planning.collision import AttachedObject, CollisionModel
 from ..planning.occlusion import DepthView
 from ..planning.ik import IKSolver
 from ..planning.kinematics import PandaKinematics
@@ -62,21 +62,6 @@ class SimEnvConfig:
         if not 0.0 < self.velocity_scale <= 1.0:
             raise InvalidInputError(f"velocity_scale must be in (0, 1], got {self.velocity_scale}",
                                     reason="INVALID_PARAMETER")
-
-
-def part_boxes(obj: ObjectSpec) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(T_object_part, half extents) per primitive part, cylinders by their bounding box; the
-    object's bounding box when it has no parts."""
-    if not obj.parts:
-        return [(np.eye(4), np.asarray(obj.half_extents, float))]
-    return [part_box(part) for part in obj.parts]
-
-
-def object_boxes(obj: ObjectSpec, pose: Pose, joints=None) -> list[Box]:
-    """Planner boxes for an object at `pose`: one per primitive part, and an articulated object's links
-    at the scene's joint values ({joint_key: value}; planning/articulated.py)."""
-    T = pose.matrix()
-    return [Box(obj.id, T @ Tp, h) for Tp, h in part_boxes(obj)] + link_boxes(obj, pose, joints)
 
 
 def attached_from_parts(obj: ObjectSpec, T_ee_obj: np.ndarray, spacing: float = 0.01) -> AttachedObject:

@@ -19,20 +19,12 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..geometry import Pose
-from ..planning.articulated import link_boxes, part_box
-from ..planning.collision import Box
+from ..planning.articulated import object_boxes
 from ..tasks.spec import ObjectSpec
 from .models import ObjectModel
 from .pipeline import PerceptionParams, PerceptionResult, PerceptionStatus, estimate_poses
 
 FIXTURE_PAD = 0.003  # m: points this close outside a fixture's part still belong to it (depth noise ~1 mm)
-
-
-def fixture_boxes(spec: ObjectSpec, pose, joints: Mapping[str, float] | None) -> list[Box]:
-    """Every fixed part and every link part of an articulated fixture at `pose` and the joint values."""
-    T = pose.matrix()
-    fixed = [Box(spec.id, T @ Tp, h) for Tp, h in (part_box(p) for p in spec.parts)]
-    return fixed + link_boxes(spec, pose, joints)
 
 
 def estimate_with_fixtures(points: np.ndarray, models: Mapping[str, ObjectModel], specs: Mapping[str, ObjectSpec],
@@ -59,7 +51,7 @@ def estimate_with_fixtures(points: np.ndarray, models: Mapping[str, ObjectModel]
     pts = np.asarray(points, float).reshape(-1, 3)
     found = sorted(where)
     inside = np.zeros(len(pts), bool)
-    for b in (b for i in found for b in fixture_boxes(specs[i], where[i], joints)):
+    for b in (b for i in found for b in object_boxes(specs[i], where[i], joints)):
         inside |= b.contains(pts, FIXTURE_PAD)
     # every movable model competes (the mug claims its own cluster); a movable object the second look
     # misses keeps what the first look found

@@ -38,6 +38,22 @@ def link_boxes(obj, pose: Pose, joints: Mapping[str, float] | None = None) -> li
     return out
 
 
+def part_boxes(obj) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(T_object_part, half extents) per primitive part, cylinders by their bounding box; the
+    object's bounding box when it has no parts."""
+    if not obj.parts:
+        return [(np.eye(4), np.asarray(obj.half_extents, float))]
+    return [part_box(part) for part in obj.parts]
+
+
+def object_boxes(obj, pose: Pose, joints: Mapping[str, float] | None = None) -> list[Box]:
+    """Boxes of an object at `pose`: one per primitive part, and an articulated object's links at the
+    scene's joint values ({joint_key: value}): the planner's obstacles, and what perception cuts out
+    of the cloud around a fixture (perception/fixtures.py)."""
+    T = pose.matrix()
+    return [Box(obj.id, T @ Tp, h) for Tp, h in part_boxes(obj)] + link_boxes(obj, pose, joints)
+
+
 def box_points(boxes, spacing: float = 0.01) -> np.ndarray:
     """Points on the faces of `boxes` at most `spacing` apart: links as a cloud obstacle (a planner whose
     cloud lost them, e.g. perception's obstacle cloud, which drops a recognized object's points)."""

@@ -272,7 +272,8 @@ def render() -> str:
     cells = cell_rows()
     if cells:
         lines += [""] + cells
-    from bench.hsp.table import budget_rows, demos_rows, hsp_rows, observation_rows, reg_target_rows, size_rows
+    from bench.hsp.table import (budget_rows, demos_rows, device_rows, hsp_rows, observation_rows, reg_target_rows,
+                                 size_rows)
 
     hsp = hsp_rows(load("hsp"))
     if hsp:
@@ -280,6 +281,7 @@ def render() -> str:
         lines += [""] + hsp + observation_rows(before, load("hsp")) + budget_rows(before, load("hsp_budget3x"))
         lines += size_rows(before, load("hsp_budget3x"), load("hsp_h200")) + reg_target_rows(load("hsp_reg_target"))
         lines += demos_rows(load("hsp"), load("hsp_200demos"))
+        lines += device_rows(load("hsp"), load("hsp_cuda_hsp"), load("hsp_cuda_bc"))
     lines += ["", END]
     return "\n".join(lines)
 

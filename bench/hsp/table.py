@@ -193,3 +193,29 @@ def demos_rows(base: dict, few: dict) -> list[str]:
                        f"(bench/results/hsp_200demos.json; data from {n.get('attempts', '?')} attempts): "
                        + "; ".join(parts) + ".")
     return out
+
+
+def device_rows(base: dict, *runs: dict) -> list[str]:
+    """Networks trained on a lent GPU (bench/hsp/device.py, bench/results/hsp_cuda_*.json), evaluated
+    here on the same held-out seeds: per method the successes at each returned step, beside the CPU
+    run's best (`base`)."""
+    out = []
+    for run in runs:
+        for name, c in run.get("cells", {}).items():
+            b = base.get("cells", {}).get(name, {})
+            for net, n in c.get("networks", {}).items():
+                parts = []
+                for m in METHODS:
+                    evals = sorted(c.get("methods", {}).get(m, {}).get("evals", []), key=lambda e: e["step"])
+                    if not evals:
+                        continue
+                    cpu = b.get("methods", {}).get(m, {}).get("best")
+                    at = ", ".join(f"{e['successes']} at {e['step'] // 1000}k" for e in evals)
+                    parts.append(f"{m} {at} of {evals[0]['rollouts']}" + (
+                        f" (CPU: {cpu['successes']} at {cpu['step'] / 1000:g}k)" if cpu else ""))
+                if parts:
+                    out.append(f"- {name}, {net} networks trained on a lent GPU ({n['device']}, torch {n['torch']}; "
+                               f"bench/hsp/device.py, same data, sizes and seed, evaluated here): {n['steps']} steps "
+                               f"in {n['train_seconds'] / 60:.1f} min ({n['ms_per_train_step']:.1f} ms/step): "
+                               + "; ".join(parts) + ".")
+    return out

@@ -209,10 +209,13 @@ def device_rows(base: dict, *runs: dict) -> list[str]:
                     evals = sorted(c.get("methods", {}).get(m, {}).get("evals", []), key=lambda e: e["step"])
                     if not evals:
                         continue
-                    cpu = b.get("methods", {}).get(m, {}).get("best")
-                    at = ", ".join(f"{e['successes']} at {e['step'] // 1000}k" for e in evals)
-                    parts.append(f"{m} {at} of {evals[0]['rollouts']}" + (
-                        f" (CPU: {cpu['successes']} at {cpu['step'] / 1000:g}k)" if cpu else ""))
+                    cpu = sorted(b.get("methods", {}).get(m, {}).get("evals", []), key=lambda e: e["step"])
+                    at = ", ".join(f"{e['successes']}/{e['rollouts']} at {e['step'] / 1000:g}k" for e in evals)
+                    if cpu:
+                        wins = "/".join(str(e["successes"]) for e in cpu)
+                        steps = "/".join(f"{e['step'] / 1000:g}" for e in cpu)
+                        at += f" (the CPU run: {wins} at {steps}k)"
+                    parts.append(f"{m} {at}")
                 if parts:
                     out.append(f"- {name}, {net} networks trained on a lent GPU ({n['device']}, torch {n['torch']}; "
                                f"bench/hsp/device.py, same data, sizes and seed, evaluated here): {n['steps']} steps "

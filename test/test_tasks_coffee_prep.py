@@ -34,7 +34,7 @@ SEATED_Z = -C.HOLDER_HALF_H + 2 * C.HOLDER_BASE_HALF_H + C.HOLDER_BASE_OFFSET + 
 def test_registered_in_progress_with_the_papers_five_skills():
     # not public yet: the estimating perception misses the pod in the closed drawer (suite.IN_PROGRESS)
     assert "CoffeePreparation" in IN_PROGRESS and "CoffeePreparation" not in TASK_NAMES
-    assert TASK.variants == ("D0", "D1") and TASK.footprint == "box"
+    assert TASK.variants == ("D0", "D1", "D2") and TASK.footprint == "box"
     # SkillMimicGen appendix: grasp mug, place onto machine and open lid, open drawer, grasp pod, insert and close;
     # object_refs as MimicGen's coffee_preparation subtasks: mug, coffee_machine, drawer, coffee_pod, coffee_machine
     assert [(s.name, s.object_id, s.mode, s.attached_object) for s in TASK.skills] == [
@@ -111,11 +111,11 @@ def test_machine_is_coffees_with_the_lid_closed_at_reset():
 
 
 def _state(lid_deg=0.0, pod_dxy=(0.0, 0.0), mug_dz=0.0, mug_dxy=(0.0, 0.0), mug_tilt_deg=0.0, slide=0.0,
-           joints=None) -> SceneState:
+           joints=None, pod_dz=0.0) -> SceneState:
     """The machine at D1-like pose, the pod seated, the mug upright on the drip base under the holder."""
     m = Pose([0.40, -0.27, TABLE_Z + M.half_extents[2]], Rotation.from_euler("z", 0.3).as_quat())
     to_world = lambda local: m.rotation.apply(local) + m.position   # noqa: E731
-    pod = Pose(to_world([pod_dxy[0], C.HOLDER_POS[1] + pod_dxy[1], C.HOLDER_POS[2] + SEATED_Z]), m.quaternion)
+    pod = Pose(to_world([pod_dxy[0], C.HOLDER_POS[1] + pod_dxy[1], C.HOLDER_POS[2] + SEATED_Z + pod_dz]), m.quaternion)
     yaw = m.rotation * Rotation.from_euler("z", 1.0)        # the handle any way round
     R = yaw * Rotation.from_euler("x", np.radians(mug_tilt_deg))
     bottom = to_world(M.keypoint("base_top") + [mug_dxy[0], mug_dxy[1], mug_dz])
@@ -130,6 +130,8 @@ def test_mimicgen_success_rule_and_each_single_violation():
     assert TASK.is_success(_state(slide=-0.25))              # MimicGen does not ask for the drawer closed
     assert not TASK.is_success(_state(lid_deg=20.0))         # _check_lid: hinge < 15 deg
     assert not TASK.is_success(_state(pod_dxy=(0.0, 0.006)))  # _check_pod: r_diff = 5.2 mm
+    assert not TASK.is_success(_state(pod_dz=C.POD_HALF[2]))  # the pod half in the holder: its top over the lid's underside
+    assert C.pod_in_holder(M, POD, _state(lid_deg=120.0, pod_dz=C.POD_HALF[2]))   # ... which only the closed lid forbids
     s = _state()
     s.poses["coffee_pod"] = Pose([0.7, -0.27, -0.004], [0, 0, 0, 1])   # the pod still in the drawer
     assert not TASK.is_success(s)
@@ -146,6 +148,12 @@ def test_mimicgen_success_rule_and_each_single_violation():
     s.poses["mug"] = Pose([0.6, 0.1, TABLE_Z + MUG.half_extents[2]], [0, 0, 0, 1])
     assert CP.mug_upright(MUG, s) and not TASK.is_success(s)
     assert C.coffee_success(M, POD, s)   # Coffee's part alone still holds
+    # ... and right against the plate's side (its disk over the plate's edge in x-y, its bottom on the table)
+    m = s.poses["coffee_machine"]
+    bottom = m.rotation.apply(M.keypoint("base_top") + [C.BASE_HALF[0] + CP.MUG_R_OUT - 0.002, 0.0, 0.0]) + m.position
+    bottom[2] = TABLE_Z
+    s.poses["mug"] = Pose(bottom - MUG.keypoint("axis_bottom"), [0, 0, 0, 1])
+    assert CP.mug_upright(MUG, s) and not CP.mug_on_base(M, MUG, s) and not TASK.is_success(s)
 
 
 def test_missing_joint_state_is_a_clear_error():
@@ -160,6 +168,9 @@ PAPER = {  # SkillMimicGen appendix: (x width, y width, yaw range deg)
     ("D0", "coffee_pod"): (0.06, 0.08, 0),
     ("D1", "drawer"): (0.0, 0.0, 0), ("D1", "coffee_machine"): (0.1, 0.05, 60),
     ("D1", "mug"): (0.35, 0.2, 360), ("D1", "coffee_pod"): (0.06, 0.08, 0),
+    # D2: "same task as D0" with the drawer and the mug on the other sides: D0's sizes (suite.py)
+    ("D2", "drawer"): (0.0, 0.0, 0), ("D2", "coffee_machine"): (0.0, 0.0, 0),
+    ("D2", "mug"): (0.15, 0.20, 0), ("D2", "coffee_pod"): (0.06, 0.08, 0),
 }
 
 
@@ -184,7 +195,21 @@ def test_region_positions_follow_mimicgen_placement_bounds():
     assert d1["mug"].x == pytest.approx((cx - 0.15, cx + 0.2)) and d1["mug"].yaw == pytest.approx((0.0, 2 * np.pi))
 
 
-@pytest.mark.parametrize("variant", ["D0", "D1"])
+def test_d2_is_d0_with_the_drawer_and_the_mug_mirrored_across_the_table():
+    """SkillMimicGen's D2 (no numbers in the paper): D0's drawer and mug regions mirrored in y, the machine kept;
+    the drawer turned to yaw 0 (its mirror image: the cabinet is symmetric in x), so its pod box mirrors too."""
+    d0, d2 = TASK.regions("D0"), TASK.regions("D2")
+    mirror = lambda y: (-y[1], -y[0])   # noqa: E731
+    for oid in ("drawer", "mug", "coffee_pod"):
+        assert d2[oid].x == pytest.approx(d0[oid].x) and d2[oid].y == pytest.approx(mirror(d0[oid].y)), oid
+    assert d2["drawer"].yaw == pytest.approx((0.0, 0.0)) and d2["coffee_pod"].yaw == pytest.approx((0.0, 0.0))
+    assert d2["mug"].yaw == d0["mug"].yaw and d2["coffee_machine"] == d0["coffee_machine"]
+    assert d2["drawer"].y[0] > 0 > d2["mug"].y[1]   # the drawer on the table's +y side, the mug on its -y side
+    assert d0["drawer"].y[0] < 0 < d0["mug"].y[0]
+    assert d2["coffee_pod"].z == pytest.approx(d0["coffee_pod"].z)
+
+
+@pytest.mark.parametrize("variant", ["D0", "D1", "D2"])
 def test_200_resets_inside_the_regions_apart_and_the_pod_on_the_tray(variant):
     rng, regions = np.random.default_rng(1234), TASK.regions(variant)
     tray_z = CP.pod_on_tray_z(CAB, TABLE_Z)
@@ -228,7 +253,7 @@ def world():
     w.close()
 
 
-@pytest.mark.parametrize("variant,seed", [("D0", 0), ("D1", 3)])
+@pytest.mark.parametrize("variant,seed", [("D0", 0), ("D1", 3), ("D2", 0), ("D2", 5)])
 def test_the_objects_build_and_settle(world, variant, seed):
     scene = world.reset("CoffeePreparation", variant, seed)
     assert scene.object_joints == {SLIDE: 0.0, LID: 0.0}

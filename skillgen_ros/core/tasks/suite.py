@@ -250,7 +250,7 @@ def _coffee() -> TaskSpec:
 
 def _coffee_preparation() -> TaskSpec:
     """MimicGen's CoffeePreparation (the paper's Coffee Prep; named as MimicGen's environment, like the suite's
-    other tasks). D0 / D1 only: D2 is SkillMimicGen's own and the paper gives no numbers for its regions."""
+    other tasks): D0 / D1 MimicGen's, D2 SkillMimicGen's own (D0 with the drawer and the mug swapped sides)."""
     cab, m, mug, pod = CP.drawer(), CP.machine(), CP.mug(), C.coffee_pod()
     # MimicGen mimicgen/envs/robosuite/coffee.py CoffeePreparation._get_initial_placement_bounds, sampled drawer,
     # machine, mug (SequentialCompositeSampler), then the pod in the drawer; x / y relative to the table centre:
@@ -260,14 +260,26 @@ def _coffee_preparation() -> TaskSpec:
     # bottom's centre in the drawer frame (both variants), on the drawer's tray (coffee_prep.py).
     # The paper's D0 mug region is 0.15 x 0.15 m; MimicGen's code (where its and the paper's D0 demos come from)
     # is 0.15 x 0.20: we keep the code's.
+    def pod_in(drawer: Region) -> Region:   # z_rot 0 in the drawer: the drawer's yaw in the world
+        px, py = CP.pod_in_drawer_xy((drawer.x[0], drawer.y[0]), drawer.yaw[0])
+        return Region(px, py, drawer.yaw, z=CP.pod_on_tray_z(cab, TABLE_Z))
+
     drawer = _fixed(0.15, -0.35, PI)
-    px, py = CP.pod_in_drawer_xy((drawer.x[0], drawer.y[0]), PI)
-    pod_region = Region(px, py, (PI, PI), z=CP.pod_on_tray_z(cab, TABLE_Z))  # z_rot 0 in the drawer: pi in the world
+    # D2 (SkillMimicGen's own; appendix: "Same task as D0 but the drawer is placed on the right side of the table,
+    # and the mug is initialized on the left side of the table, instead of the right"; no numbers): D0 mirrored in
+    # y for the drawer and the mug, the machine kept. The drawer at (0.15, +0.35) with yaw 0, D0's yaw pi mirrored
+    # (the cabinet is symmetric in its x, so the mirror image is the turned cabinet; its front faces the table's
+    # centre as in D0, and its yaw stays a multiple of 90 deg as pod_in_drawer_xy needs); the mug in D0's
+    # 0.15 x 0.20 m box mirrored, y (-0.25, -0.05), at D0's yaw 0 ("same task as D0": its top-down rotation fixed
+    # as D0's; a mirrored mug would need yaw pi, not a rotation of D0's); the pod in the drawer as in D0.
+    drawer_d2 = _fixed(0.15, 0.35, 0.0)
     table = {
         "D0": {"drawer": drawer, "coffee_machine": _fixed(-0.15, -0.25, -PI / 6),
-               "mug": _rs((0.05, 0.20), (0.05, 0.25)), "coffee_pod": pod_region},
+               "mug": _rs((0.05, 0.20), (0.05, 0.25)), "coffee_pod": pod_in(drawer)},
         "D1": {"drawer": drawer, "coffee_machine": _rs((-0.25, -0.15), (-0.30, -0.25), (-PI / 6, PI / 6)),
-               "mug": _rs((-0.15, 0.20), (0.05, 0.25), FULL), "coffee_pod": pod_region},
+               "mug": _rs((-0.15, 0.20), (0.05, 0.25), FULL), "coffee_pod": pod_in(drawer)},
+        "D2": {"drawer": drawer_d2, "coffee_machine": _fixed(-0.15, -0.25, -PI / 6),
+               "mug": _rs((0.05, 0.20), (-0.25, -0.05)), "coffee_pod": pod_in(drawer_d2)},
     }
     # SkillMimicGen appendix "Tasks and Task Variants": grasp mug, place onto machine and open lid, open drawer,
     # grasp pod, insert into machine and close lid (MimicGen's coffee_preparation subtasks and object_refs)

@@ -271,7 +271,8 @@ def _coffee_preparation() -> TaskSpec:
     # (the cabinet is symmetric in its x, so the mirror image is the turned cabinet; its front faces the table's
     # centre as in D0, and its yaw stays a multiple of 90 deg as pod_in_drawer_xy needs); the mug in D0's
     # 0.15 x 0.20 m box mirrored, y (-0.25, -0.05), at D0's yaw 0 ("same task as D0": its top-down rotation fixed
-    # as D0's; a mirrored mug would need yaw pi, not a rotation of D0's); the pod in the drawer as in D0.
+    # as D0's; the mirror image would be yaw pi, which turns the D0 demos' pitched mug grasp out of the wrist's
+    # range: ground truth 0/10, IK_FAILED 7, docs/tasks.md); the pod in the drawer as in D0.
     drawer_d2 = _fixed(0.15, 0.35, 0.0)
     table = {
         "D0": {"drawer": drawer, "coffee_machine": _fixed(-0.15, -0.25, -PI / 6),
@@ -298,9 +299,10 @@ def _coffee_preparation() -> TaskSpec:
 _BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_assembly, "Threading": _threading,
              "ThreePieceAssembly": _three_piece_assembly, "Coffee": _coffee, "CoffeePreparation": _coffee_preparation}
 # Tasks get_task builds that are not public yet (issue 20). CoffeePreparation has its scripted solution
-# (scripted_coffee_prep.py) and shipped source demos (bags/CoffeePreparation), and generation runs all five skills
-# with estimated poses (D0 3-5 of 10 attempts, D1 1 of 10: docs/tasks.md), but D1's mug placement, its 200-attempt
-# cells, the graph path's rate and its per-task suite tests are not done.
+# (scripted_coffee_prep.py), shipped source demos (bags/CoffeePreparation), D0-D2 and its per-task tests, and
+# generation runs all five skills with estimated poses (D0 3-5 of 10 attempts), but D1 and D2 generate 0-1 of 10:
+# the demos' pitched mug grasp puts the wrist out of reach once D1 turns the machine toward the robot (skill 1) and
+# into the machine that D2 keeps beside the mug (skill 0) (docs/tasks.md); no 200-attempt cells, no graph-path rate.
 # The simulator, driver, planner, `skillgen demos make` and `skillgen annotate` take
 # them; `skillgen generate`, datagen and the per-task checks over TASK_NAMES do not, until they do.
 IN_PROGRESS: tuple[str, ...] = ("CoffeePreparation",)

@@ -184,7 +184,9 @@ def test_region_positions_follow_mimicgen_placement_bounds():
     for d in (d0, d1):
         assert d["drawer"].x == pytest.approx((cx + 0.15,) * 2) and d["drawer"].y == pytest.approx((-0.35, -0.35))
         assert d["drawer"].yaw == pytest.approx((np.pi, np.pi))
-        # the pod: x (-0.03, 0.03), y (-0.05, 0.03) from drawer_bottom's centre (0, -0.05) in the drawer frame, yaw pi
+        # the pod: x (-0.03, 0.03), y (-0.05, 0.03) from drawer_bottom's centre (0, -0.05) in the drawer frame; its
+        # yaw 0 in the world, as the estimating perception labels the z-symmetric pod (suite.py)
+        assert d["coffee_pod"].yaw == pytest.approx((0.0, 0.0)) and POD.symmetry == "z_continuous"
         assert d["coffee_pod"].x == pytest.approx((cx + 0.12, cx + 0.18))
         assert d["coffee_pod"].y == pytest.approx((-0.35 + 0.05 - 0.03, -0.35 + 0.05 + 0.05))
     assert d0["coffee_machine"].x == pytest.approx((cx - 0.15,) * 2) and d0["coffee_machine"].y == pytest.approx((-0.25,) * 2)

@@ -260,9 +260,13 @@ def _coffee_preparation() -> TaskSpec:
     # bottom's centre in the drawer frame (both variants), on the drawer's tray (coffee_prep.py).
     # The paper's D0 mug region is 0.15 x 0.15 m; MimicGen's code (where its and the paper's D0 demos come from)
     # is 0.15 x 0.20: we keep the code's.
-    def pod_in(drawer: Region) -> Region:   # z_rot 0 in the drawer: the drawer's yaw in the world
+    # The pod's yaw: 0 in the world, not the sampler's z_rot 0 in the drawer (pi in the world for D0's drawer). The
+    # pod is a cylinder (z_continuous), so both are the same scene, but the estimating perception labels a
+    # z-symmetric object yaw 0: with demos recorded at pi every estimated-pose attempt replayed the pod grasp turned
+    # 180 deg (D0 ground truth with the demos at pi, attempts 0-19: pod labelled pi 11/20, labelled 0 7/20).
+    def pod_in(drawer: Region) -> Region:
         px, py = CP.pod_in_drawer_xy((drawer.x[0], drawer.y[0]), drawer.yaw[0])
-        return Region(px, py, drawer.yaw, z=CP.pod_on_tray_z(cab, TABLE_Z))
+        return Region(px, py, (0.0, 0.0), z=CP.pod_on_tray_z(cab, TABLE_Z))
 
     drawer = _fixed(0.15, -0.35, PI)
     # D2 (SkillMimicGen's own; appendix: "Same task as D0 but the drawer is placed on the right side of the table,

@@ -304,8 +304,8 @@ _BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_as
              "ThreePieceAssembly": _three_piece_assembly, "Coffee": _coffee, "CoffeePreparation": _coffee_preparation}
 # Tasks get_task builds that are not public yet (issue 20). CoffeePreparation has its scripted solution
 # (scripted_coffee_prep.py), shipped source demos (bags/CoffeePreparation), D0-D2 and its per-task tests, and
-# generation runs all five skills with estimated poses (D0 3-5 of 10 attempts), but D1 and D2 generate 0-1 of 10:
-# the demos' pitched mug grasp puts the wrist out of reach once D1 turns the machine toward the robot (skill 1) and
+# generation runs all five skills with estimated poses (D0 5 of 10 attempts, D2 3 of 10), but D1 generates 0 of 10:
+# the demos' pitched mug grasp puts the wrist out of reach once D1 turns the machine toward the robot (skill 1), and
 # into the machine that D2 keeps beside the mug (skill 0) (docs/tasks.md); no 200-attempt cells, no graph-path rate.
 # The simulator, driver, planner, `skillgen demos make` and `skillgen annotate` take
 # them; `skillgen generate`, datagen and the per-task checks over TASK_NAMES do not, until they do.

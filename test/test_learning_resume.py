@@ -1,4 +1,5 @@
 """`skillgen train` resumes after an interruption exactly where it stopped; rollout hook; CLI errors."""
+import dataclasses
 import json
 
 import pytest
@@ -119,6 +120,21 @@ def test_class_head_covers_every_source_demo(tmp_path):
     assert count_source_demos(str(tmp_path), "Square", 4) == 4  # no folder: the labels seen
     with pytest.raises(SkillGenError) as e:
         count_source_demos(str(REPO / "bags"), "Square", 11)
+    assert e.value.reason == "SOURCE_DEMOS_MISMATCH"
+
+
+def test_a_request_can_name_the_class_count(tmp_path):
+    """bench/hsp/device.py trains where bags/ cannot be read: the count travels in the request."""
+    from types import SimpleNamespace
+
+    from skillgen_ros.core.learning.trainer import TrainRequest, _classes
+
+    info = SimpleNamespace(task="Square", num_source_demos=4)
+    req = TrainRequest(dataset="unused", output_dir="unused", demos_dir=str(tmp_path))
+    assert _classes(req, info) == 4  # no count, no folder: the labels seen
+    assert _classes(dataclasses.replace(req, num_source_demos=12), info) == 12
+    with pytest.raises(SkillGenError) as e:
+        _classes(dataclasses.replace(req, num_source_demos=3), info)  # fewer classes than labels
     assert e.value.reason == "SOURCE_DEMOS_MISMATCH"
 
 

@@ -127,9 +127,6 @@ def _train_one(a) -> int:
     from skillgen_ros.core.learning.trainer import TrainRequest, train
 
     work, keep = Path(a.work_dir), Path(a.keep_dir)
-    if a.source_demos:  # counted by `pack`: reading bags/ needs mcap, which the device lacks
-        import skillgen_ros.core.learning.trainer as trainer
-        trainer.count_source_demos = lambda demos_dir, task, seen: a.source_demos
     keep.mkdir(parents=True, exist_ok=True)
     net = NetworkConfig(rnn_hidden=a.hidden, mlp_hidden=tuple(a.mlp_hidden))
     # epochs only set how often last.pt, validation and the loss record are written (batches depend on
@@ -141,8 +138,10 @@ def _train_one(a) -> int:
     t_start = time.time()
     while True:
         t = time.time()
+        # num_source_demos: counted by `pack`; counting bags/ needs mcap, which the device lacks
         r = train(TrainRequest(dataset=a.dataset, output_dir=str(work), network=net, train=tc,
-                               resume=(work / "last.pt").exists(), stop_after=a.chunk_steps, progress=False))
+                               num_source_demos=a.source_demos, resume=(work / "last.pt").exists(),
+                               stop_after=a.chunk_steps, progress=False))
         step = int(r.config.step)
         cfg, sds, _ = read_checkpoint(r.last_path)
         save_checkpoint(keep / f"step_{step:06d}.pt", cfg, load_networks(cfg, sds))  # weights only

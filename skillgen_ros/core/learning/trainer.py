@@ -45,6 +45,7 @@ class TrainRequest:
     all_steps: bool | None = None  # π on every step; None: when the dataset's method is mimicgen
     reg: bool | None = None  # train HSP-Reg's I; None: when the dataset was generated with augmentation
     demos_dir: str = "bags"  # <dir>/<task>/ holds the source demos generation used: HSP-Class's classes
+    num_source_demos: int = 0  # > 0: HSP-Class's classes counted elsewhere (a machine without demos_dir)
     resume: bool = False
     stop_after: int = 0  # > 0: stop (as Ctrl-C would) after this many steps in this invocation
     progress: bool = True
@@ -75,6 +76,16 @@ def count_source_demos(demos_dir: str, task: str, seen: int) -> int:
     return n
 
 
+def _classes(req: TrainRequest, info) -> int:
+    """HSP-Class's class count: the request's, else the source demos under demos_dir."""
+    if not req.num_source_demos:
+        return count_source_demos(req.demos_dir, info.task, info.num_source_demos)
+    if req.num_source_demos < info.num_source_demos:
+        raise ParameterError(f"num_source_demos {req.num_source_demos} < the dataset's demo index "
+                             f"{info.num_source_demos - 1} + 1", reason="SOURCE_DEMOS_MISMATCH")
+    return req.num_source_demos
+
+
 def _new_config(req: TrainRequest) -> HSPConfig:
     info = dataset_info(req.dataset)
     all_steps = info.method == "mimicgen" if req.all_steps is None else req.all_steps
@@ -90,8 +101,7 @@ def _new_config(req: TrainRequest) -> HSPConfig:
     return HSPConfig(
         task=info.task, variant=info.variant, method=info.method, skills=info.skills, low_dim_keys=LOW_DIM_KEYS,
         image_keys=images, obs_shapes={k: info.obs_shapes[k] for k in keys}, object_ids=info.object_ids,
-        num_source_demos=count_source_demos(req.demos_dir, info.task, info.num_source_demos) if hsp else
-        info.num_source_demos, all_steps=all_steps, has_termination=hsp, has_class=hsp,
+        num_source_demos=_classes(req, info) if hsp else info.num_source_demos, all_steps=all_steps, has_termination=hsp, has_class=hsp,
         has_reg=reg, obs_stats=fit_obs_stats(demos, LOW_DIM_KEYS),
         initiation_norm=fit_initiation_norm(demos, req.train.reg_target) if reg else None,
         dataset_sha256=file_sha256(req.dataset),

@@ -7,9 +7,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skillgen_ros.core.planning.articulated import object_boxes
 from skillgen_ros.core.geometry import Pose
-from skillgen_ros.core.planning.articulated import link_boxes
+from skillgen_ros.core.planning.articulated import link_boxes, object_boxes
 from skillgen_ros.core.planning.collision import CollisionModel
 from skillgen_ros.core.planning.ik import IKSolver
 from skillgen_ros.core.planning.kinematics import PandaKinematics

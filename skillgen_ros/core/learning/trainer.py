@@ -101,8 +101,8 @@ def _new_config(req: TrainRequest) -> HSPConfig:
     return HSPConfig(
         task=info.task, variant=info.variant, method=info.method, skills=info.skills, low_dim_keys=LOW_DIM_KEYS,
         image_keys=images, obs_shapes={k: info.obs_shapes[k] for k in keys}, object_ids=info.object_ids,
-        num_source_demos=_classes(req, info) if hsp else info.num_source_demos, all_steps=all_steps, has_termination=hsp, has_class=hsp,
-        has_reg=reg, obs_stats=fit_obs_stats(demos, LOW_DIM_KEYS),
+        num_source_demos=_classes(req, info) if hsp else info.num_source_demos, all_steps=all_steps,
+        has_termination=hsp, has_class=hsp, has_reg=reg, obs_stats=fit_obs_stats(demos, LOW_DIM_KEYS),
         initiation_norm=fit_initiation_norm(demos, req.train.reg_target) if reg else None,
         dataset_sha256=file_sha256(req.dataset),
         dataset_path=str(req.dataset), train_demos=train, valid_demos=valid, network=req.network, train=req.train)

@@ -26,7 +26,7 @@ from bench.hsp import device  # noqa: E402
 def packed(tmp_path_factory):
     from skillgen_ros.core.learning.data import split_train_valid
 
-    src = generated_dataset(tmp_path_factory, successes=3, augment=True)
+    src = generated_dataset(tmp_path_factory, successes=3)  # the suite's cached default dataset
     split_train_valid(str(src), 0.34, 0)  # the mask the original run wrote
     work = tmp_path_factory.mktemp("work")
     cell = work / "Square_D0" / "data_hsp_3"

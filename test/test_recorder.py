@@ -132,14 +132,15 @@ def test_services_start_pause_resume_stop(tmp_path, start_node, ros_node):
     res = call("start", output=str(bag))
     assert res.success and Path(res.bag_path) == bag
     assert not call("start", output=str(tmp_path / "other")).success
-    pub = ros_node.create_publisher(OscTarget, "osc_target", 10)
+    pub = ros_node.create_publisher(OscTarget, "osc_target", 20)  # depth > a burst: nothing overwritten unacked
     assert wait_for(lambda: _subscribed([rec], ["/osc_target"]) and pub.get_subscription_count() > 0, 30)
 
     def burst(value: float, n: int = 10):
-        """n reliable messages, each acknowledged by the recorder's reader before the next is sent."""
+        """n reliable messages (the writer's history holds them all), acknowledged by the recorder's reader.
+        One wait per burst: Fast DDS acknowledges on its heartbeat (about 3 s), so a wait per message took 30 s."""
         for _ in range(n):
             pub.publish(OscTarget(gripper=value))
-            assert pub.wait_for_all_acked(Duration(seconds=15))
+        assert pub.wait_for_all_acked(Duration(seconds=15))
 
     burst(1.0)
     assert wait_for(lambda: _recorded(bag, 10), 30)

@@ -65,7 +65,7 @@ def streak(runs: list[dict]) -> int:
     return n
 
 
-def run_once(cpu: int, pytest_args: list[str], log_dir: Path) -> dict:
+def run_once(cpu: int, pytest_args: list[str], log_dir: Path, beside: str = "") -> dict:
     spinners = [mp.Process(target=_spin, daemon=True) for _ in range(cpu)]
     for p in spinners:
         p.start()
@@ -85,7 +85,7 @@ def run_once(cpu: int, pytest_args: list[str], log_dir: Path) -> dict:
     failed = [ln.split(" ", 1)[1].split(" - ")[0] for ln in proc.stdout.splitlines() if ln.startswith("FAILED ")]
     return {"commit": _git("rev-parse", "HEAD"), "code_tree": code_tree(),
             "dirty": bool(_git("status", "--porcelain", "--", "skillgen_ros", "test", "scripts")),
-            "busy_processes": cpu, "pytest_args": pytest_args, "rc": proc.returncode, "summary": line,
+            "busy_processes": cpu, "beside": beside, "pytest_args": pytest_args, "rc": proc.returncode, "summary": line,
             "counts": counts, "failed": failed, "wall_s": round(wall, 1), "log": str(path),
             "machine": machine_info(), "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
 
@@ -94,6 +94,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=1)
     ap.add_argument("--cpu", type=int, default=2, help="busy-loop processes beside the suite (stress-ng --cpu K)")
+    ap.add_argument("--beside", default="", help="other load already running (e.g. a benchmark's 2 workers), "
+                    "recorded with the run; use --cpu 0 then")
     ap.add_argument("--logs", default="/tmp/suite_runs", help="where each run's full output goes")
     ap.add_argument("--out", default=str(OUT))
     ap.add_argument("pytest_args", nargs="*")
@@ -104,7 +106,7 @@ def main() -> int:
         "command": "PYTHONPATH=$PWD python bench/reliability/suite_runs.py --runs 1 --cpu 2", "runs": []}
     rc = 0
     for i in range(a.runs):
-        r = run_once(a.cpu, a.pytest_args, Path(a.logs))
+        r = run_once(a.cpu, a.pytest_args, Path(a.logs), a.beside)
         doc["runs"].append(r)
         doc["streak"] = streak(doc["runs"])
         out.write_text(json.dumps(doc, indent=1) + "\n")

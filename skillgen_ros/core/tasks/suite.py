@@ -276,7 +276,7 @@ def _coffee_preparation() -> TaskSpec:
     # centre as in D0, and its yaw stays a multiple of 90 deg as pod_in_drawer_xy needs); the mug in D0's
     # 0.15 x 0.20 m box mirrored, y (-0.25, -0.05), at D0's yaw 0 ("same task as D0": its top-down rotation fixed
     # as D0's; the mirror image would be yaw pi, which turns the D0 demos' pitched mug grasp out of the wrist's
-    # range: ground truth 0/10, IK_FAILED 7, docs/tasks.md); the pod in the drawer as in D0.
+    # range: ground truth 0/10, IK_FAILED 7, docs/coffee_prep.md); the pod in the drawer as in D0.
     drawer_d2 = _fixed(0.15, 0.35, 0.0)
     table = {
         "D0": {"drawer": drawer, "coffee_machine": _fixed(-0.15, -0.25, -PI / 6),
@@ -306,7 +306,7 @@ _BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_as
 # (scripted_coffee_prep.py), shipped source demos (bags/CoffeePreparation), D0-D2 and its per-task tests, and
 # generation runs all five skills with estimated poses (D0 5 of 10 attempts, D2 3 of 10), but D1 generates 0 of 10:
 # the demos' pitched mug grasp puts the wrist out of reach once D1 turns the machine toward the robot (skill 1), and
-# into the machine that D2 keeps beside the mug (skill 0) (docs/tasks.md); no 200-attempt cells, no graph-path rate.
+# into the machine that D2 keeps beside the mug (skill 0) (docs/coffee_prep.md); no 200-attempt cells, no graph-path rate.
 # The simulator, driver, planner, `skillgen demos make` and `skillgen annotate` take
 # them; `skillgen generate`, datagen and the per-task checks over TASK_NAMES do not, until they do.
 IN_PROGRESS: tuple[str, ...] = ("CoffeePreparation",)

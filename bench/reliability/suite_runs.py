@@ -66,6 +66,8 @@ def streak(runs: list[dict]) -> int:
 
 
 def run_once(cpu: int, pytest_args: list[str], log_dir: Path, beside: str = "") -> dict:
+    code = {"commit": _git("rev-parse", "HEAD"), "code_tree": code_tree(),  # before: commits may land meanwhile
+            "dirty": bool(_git("status", "--porcelain", "--", "skillgen_ros", "test", "scripts"))}
     spinners = [mp.Process(target=_spin, daemon=True) for _ in range(cpu)]
     for p in spinners:
         p.start()
@@ -83,9 +85,7 @@ def run_once(cpu: int, pytest_args: list[str], log_dir: Path, beside: str = "") 
     path.write_text(log)
     line, counts = summary(proc.stdout)
     failed = [ln.split(" ", 1)[1].split(" - ")[0] for ln in proc.stdout.splitlines() if ln.startswith("FAILED ")]
-    return {"commit": _git("rev-parse", "HEAD"), "code_tree": code_tree(),
-            "dirty": bool(_git("status", "--porcelain", "--", "skillgen_ros", "test", "scripts")),
-            "busy_processes": cpu, "beside": beside, "pytest_args": pytest_args, "rc": proc.returncode, "summary": line,
+    return {**code, "busy_processes": cpu, "beside": beside, "pytest_args": pytest_args, "rc": proc.returncode, "summary": line,
             "counts": counts, "failed": failed, "wall_s": round(wall, 1), "log": str(path),
             "machine": machine_info(), "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
 

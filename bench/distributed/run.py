@@ -77,6 +77,8 @@ def _pool(a, mode: str, workers: int, prefix: str):
 
 
 def scaling_cell(a, mode: str, workers: int) -> dict:
+    # 1/5/15-min load before the cell: the previous cell's own load decays in it; more than that is other load
+    load_before = [round(x, 2) for x in os.getloadavg()]
     t_up = time.perf_counter()
     tmp, req, pool = _pool(a, mode, workers, "bench_distributed_")
     up = time.perf_counter() - t_up
@@ -106,7 +108,7 @@ def scaling_cell(a, mode: str, workers: int) -> dict:
             "demos_per_hour_per_busy_core": round(3600 * run.successes / run.wall_seconds / max(busy_cores, 1e-3), 1),
             "attempt_s_mean": round(per_attempt, 3), "ray_overhead_s_per_attempt": round(overhead, 4),
             "ray_overhead_share": round(overhead / per_attempt, 4) if per_attempt else None,
-            "worker_attempts": run.worker_attempts}
+            "worker_attempts": run.worker_attempts, "load_avg_before": load_before}
 
 
 def cancel_cell(a, mode: str, workers: int = 2) -> dict:

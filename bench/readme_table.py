@@ -141,7 +141,8 @@ def distributed_rows(d: dict) -> list[tuple[str, str, str, str]]:
     if not sm:
         return []
     return [
-        ("Ray efficiency at 2 workers, in-process / graph (Square D0, 48 attempts, 3 seeds)",
+        ("Ray efficiency at 2 workers, in-process / graph (Square D0, 48 attempts, "
+         f"{len(get(sm, 'graph/w2/Square/D0/estimate/n48.seeds') or [])} seeds)",
          f"{pct(g('in_process', 2, 'efficiency'))} / {pct(g('graph', 2, 'efficiency'))} (graph seeds "
          f"{pct(get(sm, 'graph/w2/Square/D0/estimate/n48.efficiency.min'))}-"
          f"{pct(get(sm, 'graph/w2/Square/D0/estimate/n48.efficiency.max'))})",

@@ -85,8 +85,8 @@ def run_once(cpu: int, pytest_args: list[str], log_dir: Path, beside: str = "") 
     path.write_text(log)
     line, counts = summary(proc.stdout)
     failed = [ln.split(" ", 1)[1].split(" - ")[0] for ln in proc.stdout.splitlines() if ln.startswith("FAILED ")]
-    return {**code, "busy_processes": cpu, "beside": beside, "pytest_args": pytest_args, "rc": proc.returncode, "summary": line,
-            "counts": counts, "failed": failed, "wall_s": round(wall, 1), "log": str(path),
+    return {**code, "busy_processes": cpu, "beside": beside, "pytest_args": pytest_args, "rc": proc.returncode,
+            "summary": line, "counts": counts, "failed": failed, "wall_s": round(wall, 1), "log": str(path),
             "machine": machine_info(), "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
 
 

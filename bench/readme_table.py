@@ -263,7 +263,7 @@ def cell_rows() -> list[str]:
             out.append("| " + " | ".join(row) + " |")
     out += ["", "The paper's own averages over its 18 simulation variants (skillgen 75.4%, MimicGen 40.7%, "
             "skillgen+IA 14.7%) include Coffee Prep, which has no cells here yet (in progress: "
-            "docs/tasks.md); they compare with none of the averages above."]
+            "docs/coffee_prep.md); they compare with none of the averages above."]
     return out
 
 

@@ -31,7 +31,9 @@ CONTROL_LOOP = ["sim_driver", "skill_replay", "--ros-args",
 NODES = {
     "perception": [],
     "planner": ["-p", "velocity_scale:=0.7", "-p", "dt:=0.01"],  # graphs.yaml's: the in-process env's timing
-    "datagen": ["-p", "timeout_perception:=8.0", "-p", "timeout_plan:=8.0"],
+    # perception: params/datagen.yaml's 20 s (Coffee Prep's first look, 4 objects and 2 fixtures, took over 8 s
+    # at load 4); in_progress_tasks: the Coffee Prep attempt below
+    "datagen": ["-p", "timeout_perception:=20.0", "-p", "timeout_plan:=8.0", "-p", "in_progress_tasks:=true"],
     "recorder": [a for k, v in next(n for n in load_graph("datagen") if n.exe == "recorder").parameters
                  for a in ("-p", f"{k}:={v}")],  # graphs.yaml's: the scene for Foxglove, the cloud at 1 Hz
 }
@@ -181,6 +183,15 @@ def _one_recorded_attempt(graph, out: Path, task: str, objects: tuple[str, ...])
 def test_a_three_piece_assembly_attempt_runs_through_the_graph(graph, tmp_path):
     """The 4-skill task with three free objects."""
     _one_recorded_attempt(graph, tmp_path / "tpa", "ThreePieceAssembly", ("base", "piece_1", "piece_2"))
+
+
+def test_a_coffee_prep_attempt_runs_through_the_graph(graph, tmp_path):
+    """The 5-skill task (in progress: this graph's datagen takes it with in_progress_tasks): the pod hidden in the
+    closed drawer until skill 3, two articulated fixtures whose joint values the dataset records at every step."""
+    g = _one_recorded_attempt(graph, tmp_path / "cprep", "CoffeePreparation",
+                              ("mug", "coffee_machine", "drawer", "coffee_pod"))
+    for joints in ("obs/coffee_machine_joints", "obs/drawer_joints"):
+        assert g[joints].shape[0] == len(g["actions"]) and np.isfinite(g[joints]).all(), joints
 
 
 def test_a_coffee_attempt_runs_through_the_graph(graph, tmp_path):

@@ -304,9 +304,9 @@ _BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_as
              "ThreePieceAssembly": _three_piece_assembly, "Coffee": _coffee, "CoffeePreparation": _coffee_preparation}
 # Tasks get_task builds that are not public yet (issue 20). CoffeePreparation has its scripted solution
 # (scripted_coffee_prep.py), shipped source demos (bags/CoffeePreparation), D0-D2 and its per-task tests, and
-# generation runs all five skills with estimated poses (D0 5 of 10 attempts, D2 3 of 10), but D1 generates 0 of 10:
-# the demos' pitched mug grasp puts the wrist out of reach once D1 turns the machine toward the robot (skill 1), and
-# into the machine that D2 keeps beside the mug (skill 0) (docs/coffee_prep.md); no 200-attempt cells, no graph-path rate.
+# generation runs all five skills (ground truth, attempts 0-19: D0 13, D1 12, D2 7 of 20 since the demos place the
+# mug from the machine's +x front side; D2's misses are mostly the mug grasp, beside the machine) (docs/coffee_prep.md);
+# not yet: the estimating rates with these demos, the 200-attempt cells, the graph-path rate.
 # The simulator, driver, planner, `skillgen demos make` and `skillgen annotate` take
 # them; `skillgen generate`, datagen and the per-task checks over TASK_NAMES do not, until they do.
 IN_PROGRESS: tuple[str, ...] = ("CoffeePreparation",)

@@ -306,7 +306,7 @@ _BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_as
 # (scripted_coffee_prep.py), shipped source demos (bags/CoffeePreparation), D0-D2 and its per-task tests, and
 # generation runs all five skills (ground truth, attempts 0-19: D0 13, D1 12, D2 7 of 20 since the demos place the
 # mug from the machine's +x front side; D2's misses are mostly the mug grasp, beside the machine) (docs/coffee_prep.md);
-# not yet: the estimating rates with these demos, the 200-attempt cells, the graph-path rate.
+# estimating, attempts 0-9: D0 7, D1 5, D2 2 of 10; not yet: the 200-attempt cells, the graph-path rate.
 # The simulator, driver, planner, `skillgen demos make` and `skillgen annotate` take
 # them; `skillgen generate`, datagen and the per-task checks over TASK_NAMES do not, until they do.
 IN_PROGRESS: tuple[str, ...] = ("CoffeePreparation",)

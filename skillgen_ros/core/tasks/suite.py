@@ -308,7 +308,8 @@ _BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_as
 # mug from the machine's +x front side; D2's misses are mostly the mug grasp, beside the machine) (docs/coffee_prep.md);
 # estimating, attempts 0-9: D0 7, D1 5, D2 2 of 10; not yet: the 200-attempt cells, the graph-path rate.
 # The simulator, driver, planner, `skillgen demos make` and `skillgen annotate` take
-# them; `skillgen generate`, datagen and the per-task checks over TASK_NAMES do not, until they do.
+# them, and datagen with its in_progress_tasks parameter (test_datagen_graph's Coffee Prep attempt); `skillgen
+# generate`, datagen by default and the per-task checks over TASK_NAMES do not, until they do.
 IN_PROGRESS: tuple[str, ...] = ("CoffeePreparation",)
 TASK_NAMES: tuple[str, ...] = tuple(n for n in _BUILDERS if n not in IN_PROGRESS)
 _CACHE: dict[str, TaskSpec] = {}

@@ -31,9 +31,9 @@ CONTROL_LOOP = ["sim_driver", "skill_replay", "--ros-args",
 NODES = {
     "perception": [],
     "planner": ["-p", "velocity_scale:=0.7", "-p", "dt:=0.01"],  # graphs.yaml's: the in-process env's timing
-    # perception: params/datagen.yaml's 20 s (Coffee Prep's first look, 4 objects and 2 fixtures, took over 8 s
-    # at load 4); in_progress_tasks: the Coffee Prep attempt below
-    "datagen": ["-p", "timeout_perception:=20.0", "-p", "timeout_plan:=8.0", "-p", "in_progress_tasks:=true"],
+    # perception keeps params/datagen.yaml's timeout (8 s was too short for Coffee Prep's first look, 4 objects and
+    # 2 fixtures, at load 4); in_progress_tasks: the Coffee Prep attempt below
+    "datagen": ["-p", "timeout_plan:=8.0", "-p", "in_progress_tasks:=true"],
     "recorder": [a for k, v in next(n for n in load_graph("datagen") if n.exe == "recorder").parameters
                  for a in ("-p", f"{k}:={v}")],  # graphs.yaml's: the scene for Foxglove, the cloud at 1 Hz
 }

@@ -26,6 +26,8 @@ sys.path.insert(0, str(REPO))
 from bench.machine import machine_info  # noqa: E402
 
 OUT = REPO / "bench" / "results" / "suite_runs.json"
+# what the suite exercises from the repository, for code_tree and the dirty check
+CODE_PATHS = ("skillgen_ros", "test", "scripts")
 COUNTS = re.compile(r"(\d+) (passed|failed|error|errors|skipped|xfailed|xpassed)")
 
 
@@ -41,8 +43,7 @@ def _git(*args: str) -> str:
 def code_tree() -> str:
     """The tree hash of what the suite exercises (package, tests, scripts), so result/README-only commits keep a
     streak going."""
-    return _git("rev-parse", "HEAD:skillgen_ros") + ":" + _git("rev-parse", "HEAD:test") + ":" + \
-        _git("rev-parse", "HEAD:scripts")
+    return ":".join(_git("rev-parse", f"HEAD:{p}") for p in CODE_PATHS)
 
 
 def summary(log: str) -> tuple[str, dict[str, int]]:
@@ -67,7 +68,7 @@ def streak(runs: list[dict]) -> int:
 
 def run_once(cpu: int, pytest_args: list[str], log_dir: Path, beside: str = "") -> dict:
     code = {"commit": _git("rev-parse", "HEAD"), "code_tree": code_tree(),  # before: commits may land meanwhile
-            "dirty": bool(_git("status", "--porcelain", "--", "skillgen_ros", "test", "scripts"))}
+            "dirty": bool(_git("status", "--porcelain", "--", *CODE_PATHS))}
     spinners = [mp.Process(target=_spin, daemon=True) for _ in range(cpu)]
     for p in spinners:
         p.start()

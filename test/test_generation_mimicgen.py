@@ -54,6 +54,25 @@ def test_subtask_boundaries_are_the_signal_plus_the_offset(demos):
     assert e.value.reason == "BAD_SUBTASKS"
 
 
+def test_a_skill_with_several_gripper_events_ends_at_its_last():
+    """Coffee Prep's place-mug-and-open-lid (transfer: release the mug, pinch the lid, let it go) ends where
+    MimicGen's mug_place fires, after the lid opened; its open-drawer (transit: grasp the bar, pull, let go)
+    where drawer_open fires, after the pull; a plain grasp at its close, as before."""
+    from types import SimpleNamespace as NS
+
+    spans = [(0, 20), (30, 80), (90, 130), (140, 160)]   # grasp_mug, place+open lid, open drawer, grasp_pod
+    g = -np.ones(170)
+    g[10:45] = 1.0    # mug grasped at 10, released at 45 (skill 1)
+    g[55:70] = 1.0    # lid pinched at 55, let go at 70 (skill 1's last event)
+    g[100:120] = 1.0  # bar grasped at 100, let go at 120 after the pull (skill 2)
+    g[150:] = 1.0     # pod grasped at 150 (skill 3)
+    segs = [NS(start_step=a, end_step=b) for a, b in spans]
+    demo = NS(gripper=g, skill=lambda i: segs[i], num_steps=170)
+    task = NS(name="CoffeePreparation", skills=[NS(index=i, mode=m) for i, m in
+                                                enumerate(("transit", "transfer", "transit", "transit", "transfer"))])
+    assert subtask_signals(demo, task) == [10, 70, 120, 150]
+
+
 def test_interpolation_as_pose_utils():
     T1, T2 = np.eye(4), np.eye(4)
     T2[:3, 3] = [0.6, 0.0, -0.3]

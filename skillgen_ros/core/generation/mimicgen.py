@@ -31,10 +31,15 @@ scripts/generate_core_configs.py at 33fcab6, exps/templates/robosuite/*.json at 
   0 fixed steps; see MIMICGEN_SPECS.
 
 Our source demos carry skill annotations, not MimicGen's per-step signals. Subtask i is skill i's
-object-centric subtask (its object is MimicGen's object_ref); its signal is the first step of
-skill i's annotated segment at which the gripper command has changed (closed for a skill reached
-by transit: a grasp; open for one reached by transfer: a place), as the annotation rules key on
-it. robosuite's grasp signal rises when both fingers touch, a few periods after that command.
+object-centric subtask (its object is MimicGen's object_ref); its signal is the last step of skill
+i's annotated segment at which the gripper command changed to the state it ends the skill in: the
+close of a grasp, the release of a place, as the annotation rules key on them. robosuite's grasp
+signal rises when both fingers touch, a few periods after that command. A skill with several
+gripper events ends at its last: Coffee Prep's place-mug-and-open-lid releases the mug, then
+pinches and releases the lid (MimicGen's `mug_place` signal: the mug placed and the lid past 2.08
+rad, i.e. opened), and its open-drawer grasps the bar, pulls and lets go (`drawer_open`: the slide
+past -0.19 m, about 15 steps before our demos let go; the first event, the grasp of the bar, would
+leave the pull to the pod's subtask, in the pod's frame).
 The source object pose at a subtask's start is the skill segment's `object_pose` (observed
 before the skill): the skill's object does not move in a source demo before its skill.
 """
@@ -112,10 +117,15 @@ def subtask_signals(demo: SourceDemo, task: TaskLike) -> list[int]:
     out = []
     for sk in sorted(task.skills, key=lambda s: s.index)[:-1]:
         seg = demo.skill(sk.index)
-        g = np.asarray(demo.gripper[seg.start_step:seg.end_step], float)
-        changed = g > 0 if sk.mode == "transit" else g <= 0
-        hit = np.flatnonzero(changed)
-        out.append(int(seg.start_step + hit[0]) if hit.size else int(seg.end_step - 1))
+        closed = np.asarray(demo.gripper[seg.start_step:seg.end_step], float) > 0
+        events = np.flatnonzero(closed[1:] != closed[:-1]) + 1  # steps whose command differs from the one before
+        ending = events[closed[events] == closed[-1]] if closed.size else events
+        if ending.size:
+            out.append(int(seg.start_step + ending[-1]))
+        elif closed.size and closed[0] != (sk.mode == "transfer"):  # changed at the segment's first step
+            out.append(int(seg.start_step))
+        else:
+            out.append(int(seg.end_step - 1))
     return out
 
 

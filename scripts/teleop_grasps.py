@@ -63,16 +63,23 @@ def render_task(name: str, out: Path, width: int = 1000, height: int = 640) -> t
     K = cfg.intrinsics()
     fig, ax = plt.subplots(figsize=(width / 100, height / 100), dpi=100)
     ax.imshow(frame.rgb[..., :3])
+    placed = []  # label corners (pixels) so far: a label near one drops below it (Coffee Prep's drawer and pod)
     for r in rows:
         r["pixel"] = project(K, T, r["world"])
         u, v = r["pixel"]
         ax.plot(u, v, "o", ms=11, mfc="none", mec="red", mew=2.5)
         off = ", ".join(f"{v:+.3f}" for v in r["offset"])
         left = u < width / 2  # labels point outward from the picture's centre line, so neighbours do not cross
+        dy = -18  # points (1 point = 100/72 pixels at this dpi; pixels grow downward)
+        while any(side == left and abs(pu - u) < 250 and abs(pv - (v - dy * 100 / 72)) < 52
+                  for side, pu, pv in placed):
+            dy -= 40
+        placed.append((left, u, v - dy * 100 / 72))
         ax.annotate(f"skill {r['skill']} {r['name']}: {r['object']} {r['point']}\n"
-                    f"offset ({off}) m", (u, v), xytext=(14 if not left else -14, -18),
+                    f"offset ({off}) m", (u, v), xytext=(14 if not left else -14, dy),
                     textcoords="offset points", color="white", fontsize=9, ha="right" if left else "left",
-                    bbox={"facecolor": "black", "alpha": 0.65, "pad": 2})
+                    bbox={"facecolor": "black", "alpha": 0.65, "pad": 2},
+                    arrowprops={"arrowstyle": "-", "color": "white", "lw": 1} if dy < -18 else None)
         if np.linalg.norm(r["offset"]) > 0.01:  # from the object's origin to the point (yellow)
             o = project(K, T, poses[r["object"]].position)
             ax.annotate("", xy=(u, v), xytext=o, arrowprops={"arrowstyle": "->", "color": "yellow", "lw": 2})

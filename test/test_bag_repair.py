@@ -40,10 +40,9 @@ def _qos_lists(bag: Path) -> list[list[dict]]:
 
 def test_every_shipped_bag_opens_in_rosbags_with_complete_qos():
     from skillgen_ros.core.tasks import TASK_NAMES
-    from skillgen_ros.core.tasks.suite import IN_PROGRESS
 
-    tasks = {bag.parent.name for bag in SHIPPED}   # a task in progress may ship demos first, or none yet
-    assert set(TASK_NAMES) <= tasks <= set(TASK_NAMES + IN_PROGRESS) and len(SHIPPED) == 10 * len(tasks)
+    tasks = {bag.parent.name for bag in SHIPPED}
+    assert tasks == set(TASK_NAMES) and len(SHIPPED) == 10 * len(tasks)
     for bag in SHIPPED:
         for profiles in _qos_lists(bag):
             assert profiles and all(list(p) == list(PROFILE_KEYS) for p in profiles), bag

@@ -231,7 +231,6 @@ BAD_GOALS = {
     "NaN rotation": (dict(augment_rotation_deg=NAN), "INVALID_PARAMETER"),
     "rotation past 180": (dict(augment_rotation_deg=200.0), "INVALID_PARAMETER"),
     "unknown task": (dict(task="Nope"), "UNKNOWN_TASK"),
-    "a task still in progress (datagen's in_progress_tasks off)": (dict(task="CoffeePreparation"), "UNKNOWN_TASK"),
     "long task": (dict(task="T" * 5000), "INVALID_NAME"),
     "unknown method": (dict(method="nope"), "UNKNOWN_METHOD"),
     "zero attempts": (dict(attempts=0), "INVALID_ATTEMPTS"),

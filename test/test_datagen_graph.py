@@ -32,8 +32,8 @@ NODES = {
     "perception": [],
     "planner": ["-p", "velocity_scale:=0.7", "-p", "dt:=0.01"],  # graphs.yaml's: the in-process env's timing
     # perception keeps params/datagen.yaml's timeout (8 s was too short for Coffee Prep's first look, 4 objects and
-    # 2 fixtures, at load 4); in_progress_tasks: the Coffee Prep attempt below
-    "datagen": ["-p", "timeout_plan:=8.0", "-p", "in_progress_tasks:=true"],
+    # 2 fixtures, at load 4)
+    "datagen": ["-p", "timeout_plan:=8.0"],
     "recorder": [a for k, v in next(n for n in load_graph("datagen") if n.exe == "recorder").parameters
                  for a in ("-p", f"{k}:={v}")],  # graphs.yaml's: the scene for Foxglove, the cloud at 1 Hz
 }
@@ -186,8 +186,8 @@ def test_a_three_piece_assembly_attempt_runs_through_the_graph(graph, tmp_path):
 
 
 def test_a_coffee_prep_attempt_runs_through_the_graph(graph, tmp_path):
-    """The 5-skill task (in progress: this graph's datagen takes it with in_progress_tasks): the pod hidden in the
-    closed drawer until skill 3, two articulated fixtures whose joint values the dataset records at every step."""
+    """The 5-skill task: the pod hidden in the closed drawer until skill 3, two articulated fixtures whose joint
+    values the dataset records at every step."""
     g = _one_recorded_attempt(graph, tmp_path / "cprep", "CoffeePreparation",
                               ("mug", "coffee_machine", "drawer", "coffee_pod"))
     for joints in ("obs/coffee_machine_joints", "obs/drawer_joints"):

@@ -31,10 +31,11 @@ def test_every_object_within_tolerance(world, task):
     variant = "D2"
     world.reset(task, variant, 11)
     truth = {k: p.matrix() for k, p in world.object_poses().items()}
-    models = models_for_objects(spec.objects)
+    seen = spec.required_ids([o.id for o in spec.objects], 0)   # Coffee Prep's pod lies in the closed drawer
+    models = models_for_objects([o for o in spec.objects if o.id in seen])
     res = estimate_poses(world.render("front").points_world, models, camera_position=FRONT_EYE)
     assert res.status is PerceptionStatus.OK, res.message
-    assert set(res.poses) == {o.id for o in spec.objects}
+    assert set(res.poses) == set(seen)
     for oid, e in res.poses.items():
         T, G, m = e.pose.matrix(), truth[oid], models[oid]
         assert metrics.translation_error(T, G) < TRANS_TOL, oid

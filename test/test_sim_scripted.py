@@ -8,7 +8,9 @@ import pytest
 from skillgen_ros.core.sim import SimWorld
 from skillgen_ros.core.tasks import TASK_NAMES, get_task, scripted
 
-CASES = [(t, v) for t in TASK_NAMES for v in get_task(t).variants]
+# Coffee Prep's script takes about 1000 periods (five skills); test_scripted_coffee_prep.py checks it on D0, and
+# bench/sim_driver reports its rate per variant.
+CASES = [(t, v) for t in TASK_NAMES if t != "CoffeePreparation" for v in get_task(t).variants]
 # NutAssembly D2 seed 0 puts the round nut's handle 0.87 m out at table height, past the Panda's top-down
 # reach (the paper's 0.5 m region reaches 0.81 m; bench/reachability measures the fraction), so it takes seed 1.
 SEEDS = {("NutAssembly", "D2"): 1}

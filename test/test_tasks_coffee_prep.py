@@ -21,7 +21,7 @@ from skillgen_ros.core.tasks.articulation import initial_joint_values, joint_key
 from skillgen_ros.core.tasks.shapes import aabb, read_obj
 from skillgen_ros.core.tasks.skill_points import SKILL_POINTS, skill_point_world
 from skillgen_ros.core.tasks.spec import SEPARATION_MARGIN, boxes_overlap
-from skillgen_ros.core.tasks.suite import IN_PROGRESS, TASK_NAMES
+from skillgen_ros.core.tasks.suite import TASK_NAMES
 from helpers.regions import assert_widths_match
 
 TASK = get_task("CoffeePreparation")
@@ -31,9 +31,8 @@ LID, SLIDE = joint_key("coffee_machine", "lid"), joint_key("drawer", "slide")
 SEATED_Z = -C.HOLDER_HALF_H + 2 * C.HOLDER_BASE_HALF_H + C.HOLDER_BASE_OFFSET + C.POD_HALF[2]  # on the cup base
 
 
-def test_registered_in_progress_with_the_papers_five_skills():
-    # not public yet: the estimating perception misses the pod in the closed drawer (suite.IN_PROGRESS)
-    assert "CoffeePreparation" in IN_PROGRESS and "CoffeePreparation" not in TASK_NAMES
+def test_registered_with_the_papers_five_skills():
+    assert "CoffeePreparation" in TASK_NAMES
     assert TASK.variants == ("D0", "D1", "D2") and TASK.footprint == "box"
     # SkillMimicGen appendix: grasp mug, place onto machine and open lid, open drawer, grasp pod, insert and close;
     # object_refs as MimicGen's coffee_preparation subtasks: mug, coffee_machine, drawer, coffee_pod, coffee_machine

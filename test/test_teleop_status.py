@@ -27,7 +27,7 @@ def test_every_task_skill_has_a_working_point_on_its_object():
         assert len(SKILL_POINTS[name]) == len(task.skills)
         for sk in task.skills:  # raises if the object lacks the keypoint
             p = skill_point_world(task, sk.index, Pose(np.zeros(3), np.array([0, 0, 0, 1.0])))
-            assert np.all(np.abs(p) < 0.2)
+            assert np.all(np.abs(p) < 0.25)  # on the object (Coffee Prep's drawer handle: 21 cm from its frame)
 
 
 def test_skill_progress_follows_grasps_and_releases():

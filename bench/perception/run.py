@@ -73,8 +73,14 @@ def _evaluate(res, truth: dict, models: dict) -> list[dict]:
     return rows
 
 
-def _scene(job: tuple) -> dict:
+def _reset_models(spec) -> dict:
+    """Models of the objects a reset's look must find: not those hidden then (Coffee Prep's pod in its drawer)."""
     from skillgen_ros.core.perception.models import models_for_objects
+    seen = spec.required_ids([o.id for o in spec.objects], 0)
+    return models_for_objects([o for o in spec.objects if o.id in seen])
+
+
+def _scene(job: tuple) -> dict:
     from skillgen_ros.core.perception.pipeline import PerceptionParams, estimate_poses
     from skillgen_ros.core.perception.pose import PoseParams
     from skillgen_ros.core.sim.camera import FRONT_EYE
@@ -83,7 +89,7 @@ def _scene(job: tuple) -> dict:
     w = _W["world"]
     w.reset(task, variant, seed)
     truth = {k: p.matrix() for k, p in w.object_poses().items()}  # object (mesh) frames
-    models = models_for_objects(get_task(task).objects)
+    models = _reset_models(get_task(task))
     params = PerceptionParams()
     out = {"task": task, "variant": variant, "seed": seed}
     for name in ("hi", "default"):
@@ -114,14 +120,13 @@ def _scene(job: tuple) -> dict:
 def _latency(task: str, n: int, noise) -> dict:
     """Per-frame latency of estimate_poses in this process alone (no pool workers competing for
     the cores): n scenes of `task` at 640x480 and at the default resolution, CPU and wall time."""
-    from skillgen_ros.core.perception.models import models_for_objects
     from skillgen_ros.core.perception.pipeline import PerceptionParams, estimate_poses
     from skillgen_ros.core.sim.camera import FRONT_EYE
     from skillgen_ros.core.tasks import get_task
     if "world" not in _W:
         _init(noise)
     w, spec = _W["world"], get_task(task)
-    models, params = models_for_objects(spec.objects), PerceptionParams()
+    models, params = _reset_models(spec), PerceptionParams()
     out = {}
     for name in ("hi", "default"):
         w.cameras["front"] = _W["cams"][name]

@@ -27,9 +27,7 @@ from skillgen_ros.core.geometry import Pose  # noqa: E402
 from skillgen_ros.core.sim import SimWorld  # noqa: E402
 from skillgen_ros.core.skills.bag_demos import open_bag, read_demo_arrays, read_scene  # noqa: E402
 from skillgen_ros.core.tasks import TASK_NAMES  # noqa: E402
-from skillgen_ros.core.tasks.suite import IN_PROGRESS  # noqa: E402
 
-KNOWN = TASK_NAMES + IN_PROGRESS  # a task in progress may ship demos before it joins TASK_NAMES
 
 SHIFT = 500  # scene-seed offset of the baseline's different scene
 
@@ -46,11 +44,11 @@ def main() -> int:
     ap.add_argument("--quick", action="store_true", help="only the 3-demo subset per task")
     ap.add_argument("--bags", default=str(REPO / "bags"))
     ap.add_argument("--out", default=str(REPO / "bench/results/source_demos.json"))
-    ap.add_argument("--tasks", nargs="+", default=list(TASK_NAMES), choices=KNOWN)
+    ap.add_argument("--tasks", nargs="+", default=list(TASK_NAMES), choices=TASK_NAMES)
     a = ap.parse_args()
     world = SimWorld()
     old = json.loads(Path(a.out).read_text()).get("tasks", {}) if Path(a.out).exists() else {}
-    results = {t: r for t, r in old.items() if t not in a.tasks and t in KNOWN}
+    results = {t: r for t, r in old.items() if t not in a.tasks and t in TASK_NAMES}
     t_all = time.monotonic()
     for task in a.tasks:
         paths = subset_paths(Path(a.bags) / task, "first3" if a.quick else "all")

@@ -38,7 +38,6 @@ from skillgen_ros.core import validation as V
 from skillgen_ros.core.skills.augmentation import MAX_TRANSLATION, AugmentationConfig
 from skillgen_ros.core.skills.bag_demos import SourceDemoCache, expand_bag_paths
 from skillgen_ros.core.tasks import TASK_NAMES, get_task
-from skillgen_ros.core.tasks.suite import IN_PROGRESS
 from skillgen_ros.core.tasks.spec import MAX_SEED
 from skillgen_ros.nodes import datagen_pool
 from skillgen_ros.nodes.graph_env import RosGraphEnv
@@ -62,7 +61,6 @@ class DatagenNode(Node):
         self.declare_parameter("profile", DEFAULT_PROFILE)
         self.declare_parameter("observation_source", "ground_truth")
         self.declare_parameter("write_report", True)
-        self.declare_parameter("in_progress_tasks", False)
         for k, v in _RELEASE_PARAMS.items():
             self.declare_parameter(f"release.{k}", v)
         self.declare_parameter("driver_node", "sim_driver")
@@ -87,8 +85,6 @@ class DatagenNode(Node):
             V.finite("action_noise", self.get_parameter("action_noise").value, 0.0, 1.0)
         except InvalidInputError as e:
             raise ParameterError(str(e.args[0])) from None
-        # the task names goals may use: suite.TASK_NAMES, plus the tasks still being built where asked for
-        self._tasks = TASK_NAMES + (IN_PROGRESS if self.get_parameter("in_progress_tasks").value else ())
         self._writable = [str(self.get_parameter("output_root").value),
                           *(r for r in self.get_parameter("writable_roots").value if r)]
         self.env = RosGraphEnv(self, timeouts, demos_dir="",
@@ -183,7 +179,7 @@ class DatagenNode(Node):
         try:
             req = self._request(g)
             distributed = datagen_pool.is_distributed(g)
-            validate_request(req, self._tasks, check_output=not getattr(g, "resume", False))
+            validate_request(req, TASK_NAMES, check_output=not getattr(g, "resume", False))
             demos = self._demos(req)
             if distributed:  # Ray workers run the attempts: this node's graph is not needed
                 datagen_pool.check_goal(self, g)
@@ -262,7 +258,7 @@ class DatagenNode(Node):
         try:
             req = self._request(request)
             req = RunRequest(**{**req.__dict__, "attempts": 1, "first_index": int(request.index)})
-            validate_request(req, self._tasks)
+            validate_request(req, TASK_NAMES)
             missing = self.env.wait_ready(5.0)  # as a call would wait for its server (graph_env._call)
             if missing:  # a graph without these cannot run an attempt: the request is refused, as generate's is
                 raise SkillGenError(f"not available: {', '.join(missing)}", reason="GRAPH_NOT_READY")

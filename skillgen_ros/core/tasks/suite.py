@@ -302,21 +302,12 @@ def _coffee_preparation() -> TaskSpec:
 
 _BUILDERS = {"Square": _square, "PickPlace": _pick_place, "NutAssembly": _nut_assembly, "Threading": _threading,
              "ThreePieceAssembly": _three_piece_assembly, "Coffee": _coffee, "CoffeePreparation": _coffee_preparation}
-# Tasks get_task builds that are not public yet (issue 20). CoffeePreparation has its scripted solution
-# (scripted_coffee_prep.py), shipped source demos (bags/CoffeePreparation), D0-D2 and its per-task tests, and
-# generation runs all five skills (ground truth, attempts 0-19: D0 13, D1 12, D2 7 of 20 since the demos place the
-# mug from the machine's +x front side; D2's misses are mostly the mug grasp, beside the machine) (docs/coffee_prep.md);
-# estimating, attempts 0-9: D0 7, D1 5, D2 2 of 10; not yet: the 200-attempt cells, the graph-path rate.
-# The simulator, driver, planner, `skillgen demos make` and `skillgen annotate` take
-# them, and datagen with its in_progress_tasks parameter (test_datagen_graph's Coffee Prep attempt); `skillgen
-# generate`, datagen by default and the per-task checks over TASK_NAMES do not, until they do.
-IN_PROGRESS: tuple[str, ...] = ("CoffeePreparation",)
-TASK_NAMES: tuple[str, ...] = tuple(n for n in _BUILDERS if n not in IN_PROGRESS)
+TASK_NAMES: tuple[str, ...] = tuple(_BUILDERS)
 _CACHE: dict[str, TaskSpec] = {}
 
 
 def get_task(name: str) -> TaskSpec:
-    """The TaskSpec for `name` (one of TASK_NAMES or IN_PROGRESS); UnknownTaskError otherwise."""
+    """The TaskSpec for `name` (one of TASK_NAMES); UnknownTaskError otherwise."""
     if name not in _BUILDERS:
         raise UnknownTaskError(f"unknown task {name!r}; known: {list(TASK_NAMES)}")
     if name not in _CACHE:

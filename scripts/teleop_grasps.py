@@ -63,7 +63,7 @@ def render_task(name: str, out: Path, width: int = 1000, height: int = 640) -> t
     K = cfg.intrinsics()
     fig, ax = plt.subplots(figsize=(width / 100, height / 100), dpi=100)
     ax.imshow(frame.rgb[..., :3])
-    placed = []  # label corners (pixels) so far: a label near one drops below it (Coffee Prep's drawer and pod)
+    placed = []  # label centres (pixels) so far: a label near one drops below it (Coffee Prep's drawer and pod)
     for r in rows:
         r["pixel"] = project(K, T, r["world"])
         u, v = r["pixel"]

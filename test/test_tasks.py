@@ -61,8 +61,9 @@ def test_meshes_match_specs(name):
         assert (o.mass == 0) == o.is_fixture
 
 
-@pytest.mark.parametrize("task,variant", [c for c in CASES if c[0] != "CoffeePreparation"])  # its pod starts in the
-def test_200_resets_inside_documented_regions(task, variant):  # drawer: test_tasks_coffee_prep's own reset test
+# Coffee Prep's pod starts in its drawer, not on the table: test_tasks_coffee_prep has its own reset test
+@pytest.mark.parametrize("task,variant", [c for c in CASES if c[0] != "CoffeePreparation"])
+def test_200_resets_inside_documented_regions(task, variant):
     spec = get_task(task)
     regions = spec.regions(variant)
     rng = np.random.default_rng(1234)

@@ -35,8 +35,8 @@ for _task, _rows in _CLUTTER.items():
     PAPER_RATES[(_task, "clutter")] = {"mimicgen": round(sum(r[1] for r in _rows) / len(_rows), 2),
                                        "skillgen": round(sum(r[2] for r in _rows) / len(_rows), 2)}
 
-_ALIASES = {"piece_assembly": "three_piece_assembly", "threepieceassembly": "three_piece_assembly", "nut": "nut_assembly", "nutassembly": "nut_assembly",
-            "coffeepreparation": "coffee_prep"}
+_ALIASES = {"piece_assembly": "three_piece_assembly", "threepieceassembly": "three_piece_assembly",
+            "nut": "nut_assembly", "nutassembly": "nut_assembly", "coffeepreparation": "coffee_prep"}
 
 
 def method_key(method: str, augment: bool) -> str:

@@ -49,7 +49,8 @@ class RosEnv:
         n = self.n_ee
         self.c.pub.publish(OscTarget(pose=pose_to_msg(pose), gripper=float(gripper)))
         # the period's ee_pose, its ground truth and its ee_wrench (same stamp) must all have arrived
-        assert self.c.spin_until(lambda: self.n_ee > n and self.c.last["gt"].header.stamp
+        # (on a loaded machine the first ee_wrench can come after the first ee_pose: wait, do not index it)
+        assert self.c.spin_until(lambda: self.n_ee > n and "ee_wrench" in self.c.last and self.c.last["gt"].header.stamp
                                  == self.c.last["ee_pose"].header.stamp == self.c.last["ee_wrench"].header.stamp,
                                  10.0)
         self.wrenches.append((float(gripper), wrench_from_msg(self.c.last["ee_wrench"]),

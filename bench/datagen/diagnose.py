@@ -48,6 +48,9 @@ def _count_touches(env, body: str) -> list[int]:
     return counter
 
 
+LIFTED, LID_OPENED = 0.05, 1.3   # m above its start; rad (the demos swing the lid to 1.55-1.8 rad)
+
+
 def _coffee_prep_stage(obs: dict) -> str:
     """How far a failed Coffee Prep attempt got, from its recorded true object poses and joint values."""
     from skillgen_ros.core.tasks import coffee as C
@@ -68,7 +71,6 @@ def _coffee_prep_stage(obs: dict) -> str:
     return "6 lid closed, pod or mug not in place"
 
 
-LIFTED, LID_OPENED = 0.05, 1.3   # m above its start; rad (the demos swing the lid to 1.55-1.8 rad)
 STAGES = {"CoffeePreparation": _coffee_prep_stage}   # tasks whose failures --stages can place
 
 

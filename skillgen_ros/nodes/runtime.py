@@ -75,7 +75,7 @@ def run_nodes(factories: list[Callable[[], "rclpy.node.Node"]], args=None, threa
         for n in nodes:
             ex.add_node(n)
         try:
-            ex.spin()
+            spin_until_stopped(ex, stop)
         except Exception:  # noqa: BLE001 - a callback's error; after Ctrl-C it is the shut-down context
             if not stop.is_set() and rclpy.ok():  # (a timer publishing as rclpy shut it down:
                 raise  # "publisher's context is invalid"), which is a clean stop, not a failure
@@ -98,6 +98,19 @@ def run_nodes(factories: list[Callable[[], "rclpy.node.Node"]], args=None, threa
         if rclpy.ok():
             rclpy.shutdown()
     return 0
+
+
+STOP_CHECK_S = 0.25  # the longest a Ctrl-C can go unseen if rclpy's own signal handler misses it
+
+
+def spin_until_stopped(ex, stop, check_s: float = STOP_CHECK_S) -> None:
+    """`ex.spin()`, but waking at least every `check_s` s to look at `stop` (entry.STOP, set by our
+    SIGINT/SIGTERM handler). rclpy's handler normally shuts the context down and the wait returns
+    at once; CI once saw a node sit in rcl_wait for 15 s after a SIGINT (its SIGTERM then worked).
+    A Python handler only runs when the main thread runs Python, so a wait with no timeout could
+    hold it off forever; with one, the stop is seen within `check_s`."""
+    while rclpy.ok(context=ex.context) and not stop.is_set():
+        ex.spin_once(timeout_sec=check_s)
 
 
 def not_implemented(name: str, issue: str) -> int:

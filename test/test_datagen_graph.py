@@ -27,7 +27,7 @@ CONTROL_LOOP = ["sim_driver", "skill_replay", "--ros-args",
                 "--params-file", str(REPO / "params" / "sim_driver.yaml"),
                 "--params-file", str(REPO / "params" / "skill_replay.yaml"),
                 "-p", "sim_driver:cameras:=[front]", "-p", "sim_driver:camera_hz:=0.0",
-                "-p", "sim_driver:depth_noise_base:=0.001", "-p", "sim_driver:lockstep_timeout_s:=10.0"]
+                "-p", "sim_driver:depth_noise_base:=0.001", "-p", "sim_driver:lockstep_timeout_s:=120.0"]
 NODES = {
     "perception": [],
     "planner": ["-p", "velocity_scale:=0.7", "-p", "dt:=0.01"],  # graphs.yaml's: the in-process env's timing

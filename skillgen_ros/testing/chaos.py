@@ -115,6 +115,21 @@ def bag_messages(bag_dir: str | os.PathLike) -> tuple[int, bool]:
         return sum(1 for _ in r.messages()), recovered
 
 
+def bag_messages_on_disk(bag_dir: str | os.PathLike) -> int:
+    """Messages in the complete chunks of a bag being written (each .mcap scanned up to its last
+    complete, CRC-valid chunk): what a SIGKILL of the recorder now must not lose."""
+    from skillgen_ros.core.bag.scan import FileScan, stream_records
+    from skillgen_ros.core.errors import BagError
+
+    n = 0
+    for f in sorted(Path(bag_dir).glob("*.mcap")):
+        try:
+            n += sum(1 for _ in stream_records(f, FileScan()))
+        except (BagError, OSError):  # not even a header yet
+            continue
+    return n
+
+
 GOAL = dict(task="Square", variant="D0", method="skillgen", attempts=20, target_successes=3, record_bag=True,
             video_attempts=0)  # 3 successes: at most 2 (attempt 0, the one in flight) can come before the kill
 
@@ -129,6 +144,7 @@ class KillRecord:
     successes_after: int = 0  # demos from attempts after the in-flight one
     stage_failures: int = 0  # attempts from the in-flight one on that failed with the killed stage's reason
     bag_messages: int = 0
+    bag_on_disk_at_kill: int = 0  # recorder kills: messages in complete chunks when it died
     bag_recovered: bool = False
     respawn_seconds: float = 0.0
     run_reason: str = ""
@@ -179,6 +195,12 @@ def kill_mid_run(launcher_pid: int, make_client: Callable, victim: str, out: Pat
                 or c.is_done():
             rec.problems.append("the run ended (or hung) before the kill")
             return rec
+        if victim == "recorder":  # kill it once a chunk is complete: what it must keep (a kill before the first
+            # chunk closes loses the open one by design, max_chunk_age; CI once killed it with none on disk)
+            if not _wait(lambda: bag_messages_on_disk(out / "bag") > 0, 300):
+                rec.problems.append("the recorder completed no chunk before the kill")
+                return rec
+            rec.bag_on_disk_at_kill = bag_messages_on_disk(out / "bag")
         rec.in_flight = first_index + c.feedback().attempts
         old, t = kill(launcher_pid, victim), time.monotonic()
         if not _wait(lambda: respawned(launcher_pid, victim, old), 120):
@@ -209,6 +231,9 @@ def kill_mid_run(launcher_pid: int, make_client: Callable, victim: str, out: Pat
         rec.bag_messages, rec.bag_recovered = bag_messages(out / "bag")
         if rec.bag_messages == 0:
             rec.problems.append("the bag holds no message")
+        if rec.bag_messages < rec.bag_on_disk_at_kill:
+            rec.problems.append(f"the recovered bag holds {rec.bag_messages} messages, fewer than the "
+                                f"{rec.bag_on_disk_at_kill} on disk when the recorder died")
         if rec.bag_recovered != (victim == "recorder"):
             rec.problems.append(f"bag recovered={rec.bag_recovered} after killing {victim}")
     except Exception as e:  # noqa: BLE001 -- any reader error is a lost bag

@@ -62,6 +62,21 @@ def next_domain_id() -> int:
     return lease.id
 
 
+@pytest.fixture(autouse=True)
+def _scheduling_unchanged():
+    """Fail the test that leaves this process at another scheduling policy or nice value: every node the suite
+    starts afterwards inherits it. SVT-AV1 (the LeRobot export's video codec), run as root, once left pytest at
+    SCHED_FIFO 99, and each later node test ran 3-6x slower on a real-time machine (2026-12-05)."""
+    def now():
+        return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, os.getpriority(os.PRIO_PROCESS, 0)
+    before = now()
+    yield
+    after = now()
+    if after != before:
+        os.sched_setscheduler(0, before[0], os.sched_param(before[1]))  # the next tests run as they should
+        pytest.fail(f"the test changed this process's (policy, rt priority, nice) from {before} to {after}")
+
+
 @pytest.fixture(scope="module", autouse=True)
 def _release_module_domains():
     """Frees next_domain_id()'s leases after the module's own fixtures (set up later) stopped."""

@@ -71,6 +71,29 @@ def exported(tmp_path, demos, hub_forbidden):  # noqa: F811
     return src, str(dst)
 
 
+def _scheduling() -> tuple[int, int]:
+    return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+
+
+def test_the_export_leaves_the_process_at_its_scheduling_policy(tmp_path, demos, hub_forbidden):  # noqa: F811
+    """SVT-AV1, run as root, switched the encoding thread (pytest's) to SCHED_FIFO 99, and every node the
+    suite started afterwards ran real-time: tests after this module took 3-6x longer (2026-12-05)."""
+    src = generate(tmp_path / "run", demos, n=1, worlds=lambda i: CameraWorld(images=True)).dataset_path
+    before = _scheduling()
+    export_lerobot(src, str(tmp_path / "lerobot"))
+    assert _scheduling() == before
+
+
+def test_scheduling_kept_restores_a_policy_changed_inside():
+    from skillgen_ros.core.dataset.lerobot_export import scheduling_kept
+
+    before = _scheduling()
+    with scheduling_kept():
+        os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))  # allowed without privileges
+        assert _scheduling()[0] == os.SCHED_BATCH
+    assert _scheduling() == before
+
+
 def test_lerobot_dataset_loads_the_export_and_every_frame_matches_the_hdf5(exported):
     LeRobotDataset = _lerobot()
     from lerobot.datasets.lerobot_dataset import CODEBASE_VERSION

@@ -29,6 +29,7 @@ import json
 import os
 import shutil
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import h5py
@@ -152,6 +153,23 @@ def _check_paths(src: str, dst: str) -> None:
                            reason="OUTPUT_EXISTS")
 
 
+@contextmanager
+def scheduling_kept():
+    """Restore the calling thread's scheduling policy on exit. SVT-AV1 (libsvtav1, LeRobot's default video codec),
+    run as root, switches the thread that encodes to SCHED_FIFO priority 99 ("Failed to set thread priority"
+    warnings aside): every process started from it afterwards (a node, a worker) inherited real-time priority
+    and starved the rest of the machine. The suite's node tests ran 3-6x slower after the LeRobot test."""
+    if not hasattr(os, "sched_getscheduler"):
+        yield
+        return
+    policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
+    try:
+        yield
+    finally:
+        if (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) != (policy, param.sched_priority):
+            os.sched_setscheduler(0, policy, param)
+
+
 def export_lerobot(src: str, dst: str, repo_id: str | None = None, vcodec: str | None = None,
                    progress: bool = False) -> LeRobotSummary:
     """Write the demos of `src` as a LeRobotDataset in the directory `dst` (absent or empty).
@@ -172,7 +190,7 @@ def export_lerobot(src: str, dst: str, repo_id: str | None = None, vcodec: str |
         shutil.rmtree(tmp)  # left by an export that was killed
     os.makedirs(os.path.dirname(tmp), exist_ok=True)
     try:
-        with h5py.File(src, "r", locking=False) as f:
+        with scheduling_kept(), h5py.File(src, "r", locking=False) as f:
             demos = _ordered_demos(f["data"])
             kept = [d for d in demos if int(f["data"][d].attrs["num_samples"]) > 0]
             if not kept:

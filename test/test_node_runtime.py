@@ -2,14 +2,14 @@
 
 CI once saw the perception node sit in rcl_wait for the launcher's whole 15 s stop budget after a
 SIGINT (stack dump: the executor's wait, nothing running), then stop at once on SIGTERM. The spin
-loop now wakes every STOP_CHECK_S to look at entry.STOP, which our handler sets. These tests take
-rclpy's handler out (the miss, made certain) and require the stop anyway."""
+loop now wakes every STOP_CHECK_S to look at entry.STOP, which our handler sets, and shuts the context
+down itself when rclpy's handler has not within RCLPY_GRACE_S. These tests take rclpy's handler out
+(the miss, made certain) and require the stop anyway."""
 from __future__ import annotations
 
 import signal
 import subprocess
 import sys
-import threading
 
 import pytest
 
@@ -52,6 +52,7 @@ def test_spin_until_stopped_returns_once_stop_is_set_from_a_callback(ros_domain)
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
+    from skillgen_ros.nodes.entry import StopFlag
     from skillgen_ros.nodes.runtime import spin_until_stopped
 
     ctx = rclpy.Context()
@@ -60,16 +61,57 @@ def test_spin_until_stopped_returns_once_stop_is_set_from_a_callback(ros_domain)
         node = rclpy.create_node("runtime_probe_inproc", context=ctx)
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
-        stop, ticks = threading.Event(), []
+        stop, ticks = StopFlag(), []
 
         def tick():
             ticks.append(1)
             if len(ticks) == 3:
                 stop.set()
         node.create_timer(0.01, tick)
-        spin_until_stopped(ex, stop, check_s=0.05)
-        assert len(ticks) == 3 and rclpy.ok(context=ctx)  # it stopped on the event, not on shutdown
+        spin_until_stopped(ex, stop, check_s=0.05, grace_s=0.2)
+        # nobody else shut the context down: after the grace it did, as rclpy's handler would have
+        assert len(ticks) >= 3 and not rclpy.ok(context=ctx)
         ex.shutdown()
         node.destroy_node()
     finally:
-        rclpy.shutdown(context=ctx)
+        ctx.try_shutdown()
+
+
+_REENTER = r"""
+import signal, sys
+from skillgen_ros.nodes.entry import quiet_stop_signals
+import threading
+if sys.argv[1] == "event":  # what entry.STOP was: the regression this test must catch
+    ev = threading.Event()
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, lambda *_: ev.set())
+else:
+    quiet_stop_signals()
+handler, lines = signal.getsignal(signal.SIGTERM), []
+
+def tracer(frame, event, arg):  # a second signal lands on the second line the handler's set() runs
+    if frame.f_code.co_name == "set" and event == "line":
+        lines.append(1)
+        if len(lines) == 2:
+            handler(signal.SIGTERM, None)
+    return tracer
+
+sys.settrace(tracer)
+handler(signal.SIGTERM, None)
+sys.settrace(None)
+print("SURVIVED", flush=True)
+"""
+
+
+@pytest.mark.parametrize("kind,survives", [("stop_flag", True), ("event", False)])
+def test_the_stop_handler_survives_a_second_signal_inside_itself(kind, survives):
+    """A node whose pytest was SIGKILLed hung in four nested threading.Event.set() frames: a second
+    signal inside the first handler's set() waited on the lock that set() held. The `event` case shows
+    that this test catches that (it hangs, and is killed); entry.STOP must survive it."""
+    p = subprocess.Popen([sys.executable, "-c", _REENTER, kind], cwd=REPO, stdout=subprocess.PIPE, text=True)
+    try:
+        out, _ = p.communicate(timeout=120 if survives else 5)  # a hang guard; the event case never ends
+    except subprocess.TimeoutExpired:
+        p.kill()
+        out, _ = p.communicate()
+    assert ("SURVIVED" in out) == survives, out

@@ -10,12 +10,26 @@ from __future__ import annotations
 
 import importlib
 import signal
-import threading
 
-STOP = threading.Event()  # set by SIGINT/SIGTERM from the first instant of the process
+class StopFlag:
+    """Set by SIGINT/SIGTERM. A plain bool, not a threading.Event: Event.set() takes a lock, and a second
+    signal arriving inside the first handler's set() re-entered it and waited on that lock forever (a
+    mock_driver whose pytest was SIGKILLed hung so, 2026-12-05: four nested set() frames)."""
+
+    def __init__(self) -> None:
+        self._set = False
+
+    def set(self) -> None:
+        self._set = True  # one attribute store: atomic under the GIL, safe to repeat and to interrupt
+
+    def is_set(self) -> bool:
+        return self._set
 
 
-def quiet_stop_signals() -> threading.Event:
+STOP = StopFlag()  # set by SIGINT/SIGTERM from the first instant of the process
+
+
+def quiet_stop_signals() -> StopFlag:
     """SIGINT/SIGTERM set STOP instead of raising KeyboardInterrupt. runtime.run_nodes installs them
     again before rclpy.init, whose handler shuts the context down (the executor's spin returns) and
     then calls this one. A KeyboardInterrupt can land anywhere, inside rclpy's executor too: it once

@@ -14,6 +14,7 @@ from __future__ import annotations
 import faulthandler
 import signal
 import sys
+import time
 from typing import Callable
 
 from skillgen_ros import rosenv  # noqa: F401  (sets loopback discovery before rclpy loads)
@@ -100,17 +101,26 @@ def run_nodes(factories: list[Callable[[], "rclpy.node.Node"]], args=None, threa
     return 0
 
 
-STOP_CHECK_S = 0.25  # the longest a Ctrl-C can go unseen if rclpy's own signal handler misses it
+STOP_CHECK_S = 0.25  # how often the spin looks at our stop flag
+RCLPY_GRACE_S = 1.0  # how long after our handler saw a stop rclpy's own gets to shut the context down
 
 
-def spin_until_stopped(ex, stop, check_s: float = STOP_CHECK_S) -> None:
-    """`ex.spin()`, but waking at least every `check_s` s to look at `stop` (entry.STOP, set by our
-    SIGINT/SIGTERM handler). rclpy's handler normally shuts the context down and the wait returns
-    at once; CI once saw a node sit in rcl_wait for 15 s after a SIGINT (its SIGTERM then worked).
-    A Python handler only runs when the main thread runs Python, so a wait with no timeout could
-    hold it off forever; with one, the stop is seen within `check_s`."""
-    while rclpy.ok(context=ex.context) and not stop.is_set():
+def spin_until_stopped(ex, stop, check_s: float = STOP_CHECK_S, grace_s: float = RCLPY_GRACE_S) -> None:
+    """`ex.spin()` until the context is shut down, waking every `check_s` s to look at `stop` (entry.STOP,
+    set by our SIGINT/SIGTERM handler). rclpy's handler normally shuts the context down within
+    milliseconds; CI once saw a node sit in rcl_wait for 15 s after a SIGINT (its SIGTERM then worked).
+    A Python handler only runs when the main thread runs Python, so a wait with no timeout could hold
+    it off forever. If the context is still up `grace_s` after the stop was seen, rclpy's handler
+    missed it and this shuts the context down itself (waiting first keeps the usual order: rclpy's
+    shutdown, then ours, never both at once)."""
+    seen = None
+    while rclpy.ok(context=ex.context):
         ex.spin_once(timeout_sec=check_s)
+        if stop.is_set():
+            seen = time.monotonic() if seen is None else seen
+            if time.monotonic() - seen >= grace_s:
+                ex.context.try_shutdown()
+                return
 
 
 def not_implemented(name: str, issue: str) -> int:

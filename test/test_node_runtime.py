@@ -115,3 +115,29 @@ def test_the_stop_handler_survives_a_second_signal_inside_itself(kind, survives)
         p.kill()
         out, _ = p.communicate()
     assert ("SURVIVED" in out) == survives, out
+
+
+_SHUT_AFTER_BUILD = r"""
+import sys
+from skillgen_ros.nodes.entry import quiet_stop_signals
+quiet_stop_signals()
+import rclpy
+from rclpy.node import Node
+from skillgen_ros.nodes.runtime import run_node
+
+def factory():
+    n = Node("runtime_probe")
+    rclpy.shutdown()  # what rclpy's SIGINT handler does if Ctrl-C lands right after the node is built
+    return n
+
+sys.exit(run_node(factory, executor=sys.argv[1]))
+"""
+
+
+@pytest.mark.parametrize("executor", ["single", "multi"])
+def test_ctrl_c_between_the_node_and_its_executor_is_a_clean_stop(ros_domain, executor):
+    """Suite run 11: `skillgen launch` Ctrl-C'd right after "mock_driver up" exited 1, the executor's
+    constructor failing on the shut-down context ("failed to create guard_condition")."""
+    r = subprocess.run([sys.executable, "-c", _SHUT_AFTER_BUILD, executor], cwd=REPO, env=node_env(ros_domain),
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]

@@ -118,13 +118,13 @@ def bag_messages(bag_dir: str | os.PathLike) -> tuple[int, bool]:
 def bag_messages_on_disk(bag_dir: str | os.PathLike) -> int:
     """Messages in the complete chunks of a bag being written (each .mcap scanned up to its last
     complete, CRC-valid chunk): what a SIGKILL of the recorder now must not lose."""
-    from skillgen_ros.core.bag.scan import FileScan, stream_records
+    from skillgen_ros.core.bag.scan import scan_file
     from skillgen_ros.core.errors import BagError
 
     n = 0
     for f in sorted(Path(bag_dir).glob("*.mcap")):
         try:
-            n += sum(1 for _ in stream_records(f, FileScan()))
+            n += sum(scan_file(f).counts.values())
         except (BagError, OSError):  # not even a header yet
             continue
     return n

@@ -20,7 +20,7 @@ from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.session import Progress
 from skillgen_ros.core.validation import USE_DEFAULT
 from skillgen_ros.testing.domains import LOCK_DIR, VALID_IDS, DomainLease, NoFreeDomainError, _try_lock
-from skillgen_ros.testing.processes import _die_with_parent
+from skillgen_ros.testing.processes import die_with_parent
 
 GRAPH_DIED_EXIT = 70  # a worker whose graph died exits with this (Ray restarts it)
 
@@ -46,7 +46,7 @@ class GraphRunner:
                   "-p", f"datagen:action_noise:={req.action_noise}",
                   "-p", "datagen:write_report:=false"]  # the driver writes the run's report
         self.proc = subprocess.Popen([sys.executable, "-m", "skillgen_ros.cli.main", "launch", spec.graph, *params],
-                                     env=dict(env), start_new_session=True, preexec_fn=_die_with_parent(os.getpid()))
+                                     env=dict(env), start_new_session=True, preexec_fn=die_with_parent(os.getpid()))
         from skillgen_ros.client import SkillGenClient
 
         self.client = SkillGenClient(domain_id=self.lease.id, node_name=f"skillgen_{worker}")

@@ -25,6 +25,7 @@ from skillgen_ros import rosenv
 if "skillgen_ros.testing" not in sys.modules:  # not yet loaded by the entry point: mark it as pytest_plugins
     pytest.register_assert_rewrite("skillgen_ros.testing")  # would, before it is imported here (no warning)
 from skillgen_ros.testing.domains import acquire_domain  # noqa: E402
+from skillgen_ros.testing.processes import die_with_parent  # noqa: E402
 from skillgen_ros.testing.wait import wait_for  # noqa: E402,F401  (imported from here by tests)
 
 pytest_plugins = ["skillgen_ros.testing", "pytester"]
@@ -96,7 +97,9 @@ def node_env(domain: int, **extra) -> dict:
 
 class NodeProcess:
     """A node started as its own process (the way `ros2 run` would), stopped with SIGINT. Its output
-    goes to a temporary file, not a pipe: a chatty node must never block on a full pipe buffer."""
+    goes to a temporary file, not a pipe: a chatty node must never block on a full pipe buffer. The
+    kernel sends it SIGTERM if pytest dies (as the plugin's nodes): a suite killed mid-run left a datagen
+    graph behind in its domain, which a later test holding that domain would have met."""
 
     def __init__(self, exe: str, domain: int, args=(), params: str | None = None, **env):
         cmd = [str(VENV_BIN / exe), *args]
@@ -105,7 +108,7 @@ class NodeProcess:
         self.exe = exe
         self.log = tempfile.TemporaryFile()
         self.proc = subprocess.Popen(cmd, env=node_env(domain, **env), stdout=self.log,
-                                     stderr=subprocess.STDOUT, cwd=REPO)
+                                     stderr=subprocess.STDOUT, cwd=REPO, preexec_fn=die_with_parent(os.getpid()))
 
     def output(self) -> str:
         """Everything the node has written so far."""

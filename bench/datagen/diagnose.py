@@ -12,6 +12,9 @@ most of the outcome. This splits a cell's rate by the demo used, once with the r
         --noise 0.05 --seed 1000 --attempts 100 --touch obstacle
     .venv/bin/python bench/datagen/diagnose.py --task CoffeePreparation --variant D0 --method mimicgen \
         --noise 0.05 --seed 1000 --attempts 40 --stages   # the furthest stage each failed attempt reached
+    # MimicGen with its subtask ends moved (an experiment, not the baseline): do the grasped objects drag?
+    .venv/bin/python bench/datagen/diagnose.py --task ThreePieceAssembly --variant D0 --method mimicgen \
+        --noise 0.05 --seed 1000 --attempts 40 --mimicgen-offsets 25 30
 
 Writes (merging into) bench/results/datagen_diagnosis.json, one entry per (task, variant, noise, seed).
 """
@@ -72,13 +75,39 @@ def _coffee_prep_stage(obs: dict) -> str:
 
 
 STAGES = {"CoffeePreparation": _coffee_prep_stage}   # tasks whose failures --stages can place
+DRAGGED = 0.02  # m: an object that slid this far across the table before it was first lifted was dragged
+
+
+def _drags(ep, spec) -> dict[str, float]:
+    """Per object that a transit skill grasps and a transfer skill then carries: how far it slid in x-y from
+    its grasp skill's first step until it first rose 1 cm above where it was then (to the attempt's end if
+    it never rose). A carried object slides ~0; one pulled along the table by the next segment, cm."""
+    carried = {getattr(sk, "attached_object", None) for sk in spec.skills if sk.mode == "transfer"}
+    skill_of = np.asarray(ep.labels["skill_index"])
+    out = {}
+    for sk in spec.skills:
+        key = f"{sk.object_id}_pose"
+        steps = np.flatnonzero(skill_of == sk.index)
+        if sk.mode != "transit" or sk.object_id not in carried or key not in ep.obs or not steps.size:
+            continue
+        p = np.asarray(ep.obs[key], float)[steps[0]:, :3]
+        risen = np.flatnonzero(p[:, 2] > p[0, 2] + 0.01)
+        before = p[: risen[0] + 1] if risen.size else p
+        out[sk.object_id] = float(np.linalg.norm(before[:, :2] - p[0, :2], axis=1).max())
+    return out
 
 
 def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, profile: str,
-             method: str = "skillgen", touch: str = "", stages: bool = False) -> dict:
+             method: str = "skillgen", touch: str = "", stages: bool = False,
+             mimicgen_offsets: tuple[int, int] | None = None, augment: bool = False) -> dict:
     """One cell's attempts, grouped by the source demo of the last skill (the insertion's); with
     `touch`, also how many attempts pushed the robot against that body, and how many of those
-    still succeeded (pybullet lets the arm shove past a fixed obstacle and keep its grasp)."""
+    still succeeded (pybullet lets the arm shove past a fixed obstacle and keep its grasp). With
+    `mimicgen_offsets`, MimicGen's subtask_term_offset_range is replaced for this run (an experiment on
+    where its subtasks end, never a baseline number)."""
+    from dataclasses import replace
+
+    from skillgen_ros.core.generation import mimicgen as mg
     from skillgen_ros.core.generation.attempt import run_attempt
     from skillgen_ros.core.generation.session import RunRequest
     from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
@@ -86,15 +115,21 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
     from skillgen_ros.core.tasks import get_task
 
     spec = get_task(task)
+    specs_before = dict(mg.MIMICGEN_SPECS)
+    if mimicgen_offsets:
+        mg.MIMICGEN_SPECS[task] = replace(mg.spec_for(task), offset_range=tuple(mimicgen_offsets))
     demos = load_source_demos(expand_bag_paths([str(ROOT / "bags" / task)]), spec)
     cfg = RunRequest(task=task, variant=variant, method=method, attempts=attempts, seed=seed, profile=profile,
-                     action_noise=noise, output_dir="/nonexistent").config()
+                     action_noise=noise, augment=augment, output_dir="/nonexistent").config()
     env = SimGenerationEnv(SimEnvConfig(perception="ground_truth", seed=seed, video=False))
     by_demo: dict[int, list[int]] = defaultdict(lambda: [0, 0])
     reasons: Counter = Counter()
+    at_skill: Counter = Counter()  # failure reason and the last skill whose initiation was planned
     reached: Counter = Counter()
     touching = _count_touches(env, touch) if touch else None
     touched = [0, 0]  # attempts touching `touch`, and how many of them succeeded
+    drags: dict[str, list[float]] = defaultdict(list)
+    dragged = [0, 0]  # attempts dragging an object, and how many of them succeeded
     t0 = time.perf_counter()
     try:
         for i in range(attempts):
@@ -104,23 +139,42 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
             if touching and touching[0] > 0:
                 touched[0] += 1
                 touched[1] += int(r.success)
+            moved = _drags(r.episode, spec) if r.episode is not None else {}
+            for k, v in moved.items():
+                drags[k].append(v)
+            if any(v > DRAGGED for v in moved.values()):
+                dragged[0] += 1
+                dragged[1] += int(r.success)
             d = int(r.source_demos[-1]) if r.source_demos else -1
             by_demo[d][0] += int(r.success)
             by_demo[d][1] += 1
             if not r.success:
                 reasons[f"{r.reason.value}: {r.message[:80]}"] += 1
+                if r.initiation_candidates_used:
+                    at_skill[f"{r.reason.value} at skill {len(r.initiation_candidates_used) - 1}"] += 1
                 if stages and r.reason.value == "TASK_FAILED":
                     reached[STAGES[task](r.episode.obs)] += 1
     finally:
         env.close()
+        mg.MIMICGEN_SPECS.clear()
+        mg.MIMICGEN_SPECS.update(specs_before)
     n_ok = sum(v[0] for v in by_demo.values())
     extra = {"touch": touch, "attempts_touching": touched[0], "successes_touching": touched[1]} if touch else {}
     if stages:
         extra["task_failed_stages"] = dict(sorted(reached.items()))
+    if mimicgen_offsets:
+        extra["mimicgen_offsets"] = list(mimicgen_offsets)
+    extra["drag_measure"] = "from the grasp skill's first step"   # entries without it measured from step 0
+    extra["drag_m"] = {k: {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "n": len(v)}
+                       for k, v in drags.items()}
+    extra["attempts_dragging"], extra["successes_dragging"] = dragged
+    if augment:
+        extra["augment"] = True
     return {"task": task, "variant": variant, "method": method, "profile": profile, "seed": seed, "action_noise": noise,
             "attempts": attempts, "successes": n_ok, "rate": n_ok / attempts,
             "by_source_demo": {str(k): {"successes": v[0], "attempts": v[1]} for k, v in sorted(by_demo.items())},
-            "failures": dict(reasons.most_common()), "wall_seconds": time.perf_counter() - t0, **extra}
+            "failures": dict(reasons.most_common()), "failures_at_skill": dict(sorted(at_skill.items())),
+            "wall_seconds": time.perf_counter() - t0, **extra}
 
 
 def main(argv=None) -> int:
@@ -135,26 +189,34 @@ def main(argv=None) -> int:
     ap.add_argument("--touch", default="", help="also count attempts in which the robot touches this body")
     ap.add_argument("--stages", action="store_true", help=f"the furthest stage each TASK_FAILED attempt reached "
                                                           f"(tasks: {', '.join(STAGES)})")
+    ap.add_argument("--augment", action="store_true", help="skillgen with initiation augmentation (+IA)")
+    ap.add_argument("--mimicgen-offsets", type=int, nargs=2, metavar=("LO", "HI"),
+                    help="replace the task's MimicGen subtask_term_offset_range (an experiment)")
     a = ap.parse_args(argv)
     if a.stages and a.task not in STAGES:
         ap.error(f"--stages knows the stages of {', '.join(STAGES)} only")
     out = json.loads(OUT.read_text()) if OUT.exists() else {"entries": []}
     out["machine"] = machine_info()
     for noise in a.noise:
-        e = diagnose(a.task, a.variant, a.attempts, noise, a.seed, a.profile, a.method, a.touch, a.stages)
+        e = diagnose(a.task, a.variant, a.attempts, noise, a.seed, a.profile, a.method, a.touch, a.stages,
+                     tuple(a.mimicgen_offsets) if a.mimicgen_offsets else None, a.augment)
         e["command"] = (f".venv/bin/python bench/datagen/diagnose.py --task {a.task} --variant {a.variant} "
                         f"--attempts {a.attempts} --noise {noise} --seed {a.seed} --profile {a.profile} "
                         f"--method {a.method}" + (f" --touch {a.touch}" if a.touch else "")
-                        + (" --stages" if a.stages else ""))
+                        + (" --stages" if a.stages else "") + (" --augment" if a.augment else "")
+                        + (" --mimicgen-offsets {} {}".format(*a.mimicgen_offsets) if a.mimicgen_offsets else ""))
 
         def key(x):
-            return (x["task"], x["variant"], x.get("method", "skillgen"), x["action_noise"], x["seed"], x["profile"])
+            return (x["task"], x["variant"], x.get("method", "skillgen"), x["action_noise"], x["seed"], x["profile"],
+                    tuple(x.get("mimicgen_offsets", ())), x.get("augment", False))
         out["entries"] = [x for x in out["entries"] if key(x) != key(e)] + [e]
         OUT.write_text(json.dumps(out, indent=1) + "\n")
         per = ", ".join(f"{k}: {v['successes']}/{v['attempts']}" for k, v in e["by_source_demo"].items())
         touch = f" | touching {a.touch}: {e['attempts_touching']} ({e['successes_touching']} succeeded)" if a.touch else ""
         touch += f" | stages {e['task_failed_stages']}" if a.stages else ""
-        print(f"{a.task} {a.variant} {a.method} noise {noise}: {e['successes']}/{e['attempts']} | by demo {per}{touch}",
+        touch += f" | dragging (> {DRAGGED} m) {e['attempts_dragging']} ({e['successes_dragging']} succeeded)"
+        touch += f" | failed at {e['failures_at_skill']}"
+        print(f"{a.task} {a.variant} {a.method}{'+IA' if a.augment else ''} noise {noise}: {e['successes']}/{e['attempts']} | by demo {per}{touch}",
               flush=True)
     return 0
 

@@ -136,18 +136,28 @@ def make_dataset(store: Store, cell: str, network: str, a) -> str:
     spec = get_task(task)
     demos = load_source_demos(expand_bag_paths([str(ROOT / "bags" / task)]), spec)
     env = SimGenerationEnv(SimEnvConfig(perception="ground_truth", video=False, seed=a.seed))
+
+    def generate(out: Path, first: int, attempts: int, want: int):
+        shutil.rmtree(out, ignore_errors=True)  # an interrupted shard starts over
+        return run_generation(env, demos, spec, RunRequest(task=task, variant=variant, method=method, augment=augment,
+                                                           attempts=attempts, target_successes=want, seed=a.seed,
+                                                           first_index=first, output_dir=str(out), video_attempts=0),
+                              write_report=False, keep_timings=False)
     try:
+        for sh in rec["shards"]:   # recorded by an earlier session whose out/ is gone: attempts depend only on
+            if sh["successes"] and not (Path(sh["dir"]) / "demo.hdf5").exists():   # (seed, index), so redo it
+                print(f"  {cell} {network}: {sh['dir']} is missing; regenerating its {sh['attempts']} attempts", flush=True)
+                r = generate(Path(sh["dir"]), sh["first_index"], sh["attempts"], sh["successes"])
+                if (r.attempts, r.successes) != (sh["attempts"], sh["successes"]):
+                    raise SystemExit(f"{sh['dir']}: regenerated {r.successes}/{r.attempts}, recorded "
+                                     f"{sh['successes']}/{sh['attempts']}; delete the cell's dataset record to start over")
         while sum(s["successes"] for s in rec["shards"]) < a.demos:
             k = len(rec["shards"])
             first = sum(s["attempts"] for s in rec["shards"])
             out = root / f"shard_{k:03d}"
-            shutil.rmtree(out, ignore_errors=True)  # an interrupted shard starts over
             want = min(a.shard, a.demos - sum(s["successes"] for s in rec["shards"]))
             t = time.time()
-            r = run_generation(env, demos, spec, RunRequest(task=task, variant=variant, method=method, augment=augment,
-                                                            attempts=want * a.max_attempts_factor, target_successes=want,
-                                                            seed=a.seed, first_index=first, output_dir=str(out),
-                                                            video_attempts=0), write_report=False, keep_timings=False)
+            r = generate(out, first, want * a.max_attempts_factor, want)
             rec["shards"].append({"dir": str(out), "first_index": first, "attempts": r.attempts,
                                   "successes": r.successes, "seconds": time.time() - t})
             store.save()
@@ -208,6 +218,13 @@ def train_network(store: Store, cell: str, network: str, dataset: str, methods, 
 
     out = net_dir(cell, network, a)
     rec = store.cell(cell)["networks"].setdefault(network, {"train_seconds": 0.0, "steps": 0, "finished": False})
+    if rec["steps"] and not (out / "last.pt").exists():   # recorded by a machine whose out/ is gone: start over
+        print(f"  {cell} {network}: {out / 'last.pt'} is gone; training again from step 0", flush=True)
+        rec.update(train_seconds=0.0, steps=0, finished=False)
+        for m in methods:
+            lost = store.cell(cell)["methods"].pop(m, None)
+            if lost:
+                store.cell(cell).setdefault("lost_evals", {})[m] = lost.get("evals", [])
     rec.update(dataset=dataset, hidden=a.hidden, mlp_hidden=list(a.mlp_hidden), budget_steps=a.budget_steps,
                budget_minutes=a.budget_minutes)
     net = NetworkConfig(rnn_hidden=a.hidden, mlp_hidden=tuple(a.mlp_hidden))

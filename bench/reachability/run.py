@@ -40,14 +40,16 @@ from skillgen_ros.core.planning.ik import IKSolver  # noqa: E402
 from skillgen_ros.core.planning.kinematics import PandaKinematics  # noqa: E402
 from skillgen_ros.core.robot import Q_HOME, TABLE_Z  # noqa: E402
 from skillgen_ros.core.tasks import TASK_NAMES, get_task  # noqa: E402
-from skillgen_ros.core.tasks.scripted import ScriptParams, top_down  # noqa: E402
+from skillgen_ros.core.tasks.scripted import (LID_PUSH_FROM, LID_PUSH_TO, LID_PUSH_Z, POD_RELEASE_IN,  # noqa: E402
+                                               ScriptParams, grasp_pose, nearest_equivalent, object_yaw, top_down)
 from skillgen_ros.core.demonstrator.human_like import PIECE_DROP, PIECE_GRASP_DEPTH  # noqa: E402
 
 PRM = ScriptParams()
 PAIRS = {"Square": [("square_nut", "square_peg")], "NutAssembly": [("square_nut", "square_peg"),
                                                                    ("round_nut", "round_peg")],
          "PickPlace": [("milk", "bin")], "Threading": [("needle", "tripod")],
-         "ThreePieceAssembly": [("piece_1", "base"), ("piece_2", "piece_1")]}
+         "ThreePieceAssembly": [("piece_1", "base"), ("piece_2", "piece_1")],
+         "Coffee": [("coffee_pod", "coffee_machine")]}
 PIECE_PERIOD = {"piece_1": np.pi, "piece_2": np.pi / 2}   # the ridge; the square knob
 
 
@@ -64,8 +66,12 @@ def _yaw(pose: Pose) -> float:
     return float(np.arctan2(x[1], x[0]))
 
 
-def grasp_options(obj, pose: Pose) -> list[Pose]:
-    """Top-down grasps at the handle (period pi) or 2.5 cm below the carton top (period pi / 2)."""
+def grasp_options(obj, pose: Pose, poses: dict | None = None) -> list[Pose]:
+    """Top-down grasps at the handle (period pi) or 2.5 cm below the carton top (period pi / 2); Coffee's
+    pod at its grasp keypoint, fingers across the machine's x (the scripted solution's two yaws)."""
+    if obj.type == "coffee_pod":
+        y = object_yaw(poses["coffee_machine"]) + np.pi / 2
+        return [grasp_pose(obj, pose, nearest_equivalent(y, k * np.pi, np.pi), PRM) for k in (0, 1)]
     y0 = _yaw(pose)
     if obj.id in PIECE_PERIOD:   # across the piece's x, PIECE_GRASP_DEPTH below its top (the demonstrator's)
         point, period = pose.position + [0.0, 0.0, obj.half_extents[2] - PIECE_GRASP_DEPTH], PIECE_PERIOD[obj.id]
@@ -98,6 +104,11 @@ def object_goals(task, obj, target, poses) -> list[list[Pose]]:
             out.append([Pose(np.r_[tp.position[:2], z] - R.apply(ring_local), R.as_quat())
                         for z in (top + 0.05, TABLE_Z + obj.half_extents[2] + PRM.place_drop)])
         return out
+    if obj.type == "coffee_pod":
+        top = tp.rotation.apply(target.keypoint("holder_top")) + tp.position
+        release = np.r_[top[:2], top[2] - POD_RELEASE_IN + obj.half_extents[2]]
+        q = poses[obj.id].quaternion   # carried upright, as grasped
+        return [[Pose(release + [0.0, 0.0, 0.03], q), Pose(release, q)]]
     if obj.type == "milk":
         floor = tp.rotation.apply(target.keypoint("floor_center")) + tp.position
         return [[Pose(np.r_[floor[:2], floor[2] + obj.half_extents[2] + h], Rotation.from_euler("z", y).as_quat())
@@ -112,15 +123,26 @@ def object_goals(task, obj, target, poses) -> list[list[Pose]]:
     return out
 
 
+def lid_push_options(poses) -> list[list[Pose]]:
+    """Coffee: the scripted push from behind the open lid over its hinge, per top-down hand yaw."""
+    m = poses["coffee_machine"]
+    out = []
+    for k in (0, 1):
+        q = top_down(np.zeros(3), object_yaw(m) + k * np.pi).quaternion
+        out.append([Pose(m.rotation.apply([0.0, y, z]) + m.position, q)
+                    for y, z in ((LID_PUSH_FROM, LID_PUSH_Z + 0.09), (LID_PUSH_FROM, LID_PUSH_Z), (LID_PUSH_TO, LID_PUSH_Z))])
+    return out
+
+
 def sample_reachable(reach: Reach, task, poses) -> dict:
     res = {}
     for obj_id, target_id in PAIRS[task.name]:
         obj, target = task.object(obj_id), task.object(target_id)
-        grasps = [g for g in grasp_options(obj, poses[obj_id])
+        grasps = [g for g in grasp_options(obj, poses[obj_id], poses)
                   if reach.ok([Pose(g.position + [0, 0, PRM.approach_height], g.quaternion), g])]
         res[f"grasp_{obj_id}"] = bool(grasps)
         placed = False
-        for g in grasps or grasp_options(obj, poses[obj_id]):
+        for g in grasps or grasp_options(obj, poses[obj_id], poses):
             T_obj_ee = poses[obj_id].inverse() @ g
             for goal in object_goals(task, obj, target, poses):
                 if reach.ok([o @ T_obj_ee for o in goal]):
@@ -129,6 +151,8 @@ def sample_reachable(reach: Reach, task, poses) -> dict:
             if placed:
                 break
         res[f"place_{obj_id}"] = placed
+    if task.name == "Coffee":
+        res["close_lid"] = any(reach.ok(path) for path in lid_push_options(poses))
     res["all"] = all(res.values())
     return res
 
@@ -136,11 +160,14 @@ def sample_reachable(reach: Reach, task, poses) -> dict:
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--samples", type=int, default=200)
-    ap.add_argument("--tasks", default=",".join(TASK_NAMES))
+    ap.add_argument("--tasks", default=",".join(t for t in TASK_NAMES if t in PAIRS),
+                    help="of " + ", ".join(PAIRS) + " (Coffee Prep's reach: bench/datagen/mug_grasp_reach.py)")
     ap.add_argument("--out", default=str(REPO / "bench/results/reachability.json"))
     a = ap.parse_args()
     reach = Reach()
     names = a.tasks.split(",")
+    if set(names) - set(PAIRS):
+        ap.error(f"no reachability poses for {sorted(set(names) - set(PAIRS))}; known: {', '.join(PAIRS)}")
     old = json.loads(Path(a.out).read_text())["cells"] if Path(a.out).exists() else []
     cells = [c for c in old if c["task"] not in names and c["task"] in TASK_NAMES]
     for name in names:

@@ -31,7 +31,8 @@ _LIVE: set["RosProcess"] = set()
 _LIVE_LOCK = threading.Lock()
 
 
-def _die_with_parent(parent: int):
+def die_with_parent(parent: int):
+    """A Popen preexec_fn: the child gets SIGTERM when `parent` (the caller, os.getpid()) dies."""
     def _pre_exec() -> None:  # runs in the child between fork and exec: no imports, no allocation
         _prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
         if os.getppid() != parent:  # the parent died before prctl took effect
@@ -82,7 +83,7 @@ class RosProcess:
         self._log = open(self.log_path, "wb")
         self.proc = subprocess.Popen(cmd, env=env, cwd=cwd, stdout=self._log, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True,
-                                     preexec_fn=_die_with_parent(os.getpid()))
+                                     preexec_fn=die_with_parent(os.getpid()))
         self.pid = self.proc.pid
         with _LIVE_LOCK:
             _LIVE.add(self)

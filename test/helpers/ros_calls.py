@@ -67,13 +67,16 @@ class Calls:
         """(accepted, result) for one goal; result None if not accepted or not done in `timeout`.
         `repeat`: the goal is harmless to repeat (one the server refuses at once), so it is resent
         every 10 s until answered. Under CI load a goal response was once not seen in 60 s even on
-        a matched client (rmw_fastrtps drops a reply it cannot deliver in 100 ms: answered.py)."""
-        from rclpy.action import ActionClient
+        a matched client (rmw_fastrtps drops a reply it cannot deliver in 100 ms: answered.py).
+        SafeActionClient: this node spins in another thread, so a plain ActionClient can drop a goal
+        response that arrives before it has recorded the request (rclpy#1123; a fuzz run at load ~6
+        lost a gripper goal this way, "Ignoring unexpected goal response")."""
+        from skillgen_ros.action_client import SafeActionClient
 
         key = (action_type, name)
         ac = self._clients.get(key)
         if ac is None:
-            ac = ActionClient(self.node, action_type, self._name(name))
+            ac = SafeActionClient(self.node, action_type, self._name(name))
             assert ac.wait_for_server(timeout_sec=60.0), f"action {name} never appeared"
             if probe is not None:  # an empty-task goal: rejected at once, runs nothing
                 assert first_answer(lambda: detached(ac.send_goal_async(probe)), sleep_until_done, 60.0) is not None

@@ -99,7 +99,9 @@ def test_rrt_plans_are_per_call_whatever_the_process_planned_before(world):
 def test_an_rrt_iteration_budget_ends_the_same_search_however_slow_the_machine(world):
     """RRT-Connect budgeted in iterations: a search slowed down (a checker that sleeps, as a loaded
     CPU would) grows the same trees to the same path, and a budget too small for the wall ends
-    the search after it, with the clock far from the timeout."""
+    the search after it (at the iteration budget, not the 30 s timeout). No wall-clock comparison:
+    'slower' is the slow checker's own count of the sleeps it added (a suite run at load ~6 made the
+    plain search slower than the slowed one's margin)."""
     import time
 
     from skillgen_ros.core.planning.rrt import JointSpaceRRT, RRTStatus
@@ -109,20 +111,22 @@ def test_an_rrt_iteration_budget_ends_the_same_search_however_slow_the_machine(w
                                       max_iterations=8000, timeout=300.0).solutions[0]
     cm = CollisionModel(kin)
     cm.set_boxes([WALL])
+    slept = [0]
 
     def slow(q0, q1):
         time.sleep(0.002)  # a slow checker (work, not synchronisation): the plan must not change
+        slept[0] += 1
         return cm.check_motion(q0, q1)
 
     rrt = JointSpaceRRT(kin.lower, kin.upper)
     runs = [rrt.plan(start, goal, cm.in_collision, check, 30.0, seed=4, max_iterations=100)
             for check in (cm.check_motion, slow)]
     assert all(r.status is RRTStatus.SOLVED for r in runs) and runs[0].iterations > 2
-    assert runs[1].plan_time > 1.5 * runs[0].plan_time
+    assert slept[0] > 0  # the slowed search really went through the sleeping checker
     assert runs[0].iterations == runs[1].iterations
     np.testing.assert_array_equal(runs[0].path, runs[1].path)
     cut = rrt.plan(start, goal, cm.in_collision, cm.check_motion, 30.0, seed=4, max_iterations=2)
-    assert cut.status is RRTStatus.TIMEOUT and cut.iterations == 3 and cut.plan_time < 5.0
+    assert cut.status is RRTStatus.TIMEOUT and cut.iterations == 3
 
 
 def test_a_plan_seed_draws_as_the_kth_plan_after_reseed_and_leaves_the_count(world):

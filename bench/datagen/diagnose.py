@@ -74,7 +74,30 @@ def _coffee_prep_stage(obs: dict) -> str:
     return "6 lid closed, pod or mug not in place"
 
 
-STAGES = {"CoffeePreparation": _coffee_prep_stage}   # tasks whose failures --stages can place
+def _coffee_stage(obs: dict) -> str:
+    """How far a failed Coffee attempt got, at its last step: which part of coffee.py's `_check_pod` /
+    `_check_lid` fails, with the pod's x-y miss from the holder centre (allowed: 5.2 mm) in 5 mm bins."""
+    from scipy.spatial.transform import Rotation as R
+
+    from skillgen_ros.core.tasks import coffee as C
+
+    pod, machine = np.asarray(obs["coffee_pod_pose"], float), np.asarray(obs["coffee_machine_pose"], float)
+    lid = np.asarray(obs["coffee_machine_joints"], float)[:, 0]
+    if pod[:, 2].max() - pod[0, 2] < LIFTED:
+        return "1 pod not lifted"
+    holder = R.from_quat(machine[-1, 3:]).apply(C.HOLDER_POS) + machine[-1, :3]
+    miss = float(np.linalg.norm(pod[-1, :2] - holder[:2]))
+    if miss > C.HOLDER_HALF[0] - C.POD_HALF[0]:
+        return f"2 pod beside the holder, x-y miss {5 * int(miss * 200)}-{5 * int(miss * 200) + 5} mm"
+    if pod[-1, 2] - C.POD_HALF[2] < holder[2] - C.HOLDER_HALF[2] - 1e-3:
+        return "3 pod below the holder's bottom"
+    if lid[-1] >= C.LID_CLOSED_TOLERANCE:
+        deg = 15 * int(np.degrees(lid[-1]) // 15)
+        return f"4 pod in the holder, lid open {deg}-{deg + 15} deg at the end"
+    return "5 lid closed, pod on the holder's rim (top above the lid's underside)"
+
+
+STAGES = {"CoffeePreparation": _coffee_prep_stage, "Coffee": _coffee_stage}   # tasks whose failures --stages can place
 DRAGGED = 0.02  # m: an object that slid this far across the table before it was first lifted was dragged
 
 
@@ -95,6 +118,22 @@ def _drags(ep, spec) -> dict[str, float]:
         before = p[: risen[0] + 1] if risen.size else p
         out[sk.object_id] = float(np.linalg.norm(before[:, :2] - p[0, :2], axis=1).max())
     return out
+
+
+AT_LIMIT = np.radians(1.0)  # a joint within this of its position limit is on it
+
+
+def _joints_at_limit(ep) -> list[int]:
+    """The arm joints (0-based, panda_joint1 = 0) that reached within 1 deg of a position limit during any
+    skill's replay (mp_step == 0): a rigidly transformed skill whose wrist turn runs past panda_joint7's range
+    leaves the hand short of its targets."""
+    from skillgen_ros.core.robot import Q_LOWER, Q_UPPER
+
+    q = np.asarray(ep.obs["robot0_joint_pos"], float)[np.asarray(ep.labels["mp_step"]) == 0]
+    if not len(q):
+        return []
+    hit = (q <= Q_LOWER + AT_LIMIT) | (q >= Q_UPPER - AT_LIMIT)
+    return [int(j) for j in np.flatnonzero(hit.any(axis=0))]
 
 
 def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, profile: str,
@@ -129,6 +168,7 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
     touching = _count_touches(env, touch) if touch else None
     touched = [0, 0]  # attempts touching `touch`, and how many of them succeeded
     drags: dict[str, list[float]] = defaultdict(list)
+    at_limit: dict[str, list[int]] = defaultdict(lambda: [0, 0])  # joint -> attempts on its limit, successes
     dragged = [0, 0]  # attempts dragging an object, and how many of them succeeded
     t0 = time.perf_counter()
     try:
@@ -145,6 +185,9 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
             if any(v > DRAGGED for v in moved.values()):
                 dragged[0] += 1
                 dragged[1] += int(r.success)
+            for j in _joints_at_limit(r.episode) if r.episode is not None else []:
+                at_limit[f"panda_joint{j + 1}"][0] += 1
+                at_limit[f"panda_joint{j + 1}"][1] += int(r.success)
             d = int(r.source_demos[-1]) if r.source_demos else -1
             by_demo[d][0] += int(r.success)
             by_demo[d][1] += 1
@@ -168,6 +211,7 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
     extra["drag_m"] = {k: {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "n": len(v)}
                        for k, v in drags.items()}
     extra["attempts_dragging"], extra["successes_dragging"] = dragged
+    extra["joint_at_limit_in_a_skill"] = {k: {"attempts": v[0], "successes": v[1]} for k, v in sorted(at_limit.items())}
     if augment:
         extra["augment"] = True
     return {"task": task, "variant": variant, "method": method, "profile": profile, "seed": seed, "action_noise": noise,
@@ -216,6 +260,7 @@ def main(argv=None) -> int:
         touch += f" | stages {e['task_failed_stages']}" if a.stages else ""
         touch += f" | dragging (> {DRAGGED} m) {e['attempts_dragging']} ({e['successes_dragging']} succeeded)"
         touch += f" | failed at {e['failures_at_skill']}"
+        touch += f" | joint on its limit in a skill (attempts, successes) {e['joint_at_limit_in_a_skill']}"
         print(f"{a.task} {a.variant} {a.method}{'+IA' if a.augment else ''} noise {noise}: {e['successes']}/{e['attempts']} | by demo {per}{touch}",
               flush=True)
     return 0

@@ -4,8 +4,9 @@ N times with K busy-loop processes beside it and append each run to bench/result
 stress-ng is not on these machines (not on PyPI); `--cpu K` starts K Python processes that spin, which is what
 `stress-ng --cpu K` does to the scheduler. Each record says the commit (and whether the tree was dirty), the
 busy processes, the pytest summary line and its counts, the wall time and the load average at the end. The
-streak (consecutive passing runs at the newest commit's code, counted back from the last run) is recomputed
-from the records, so runs made in different sessions add up only while the code under test is the same.
+streak (consecutive passing runs under load at the newest commit's code, counted back from the last run; a
+passing quiet run there is skipped) is recomputed from the records, so runs made in different sessions add up
+only while the code under test is the same.
 
     PYTHONPATH=$PWD python bench/reliability/suite_runs.py --runs 1 --cpu 2 [-- pytest args]
 """
@@ -56,13 +57,22 @@ def summary(log: str) -> tuple[str, dict[str, int]]:
     return line, counts
 
 
+def loaded(r: dict) -> bool:
+    """Whether the run had load beside it: busy loops, or other work named in `beside` (records before the
+    `loaded` field named a quiet run's `beside` "nothing ...")."""
+    if "loaded" in r:
+        return bool(r["loaded"])
+    return r.get("busy_processes", 0) > 0 or bool(r.get("beside")) and not r["beside"].startswith("nothing")
+
+
 def streak(runs: list[dict]) -> int:
-    """Passing runs in a row, counted back from the newest, on the newest run's code."""
+    """Passing runs under load in a row, counted back from the newest, on the newest run's code. A passing
+    quiet run on that code neither counts nor breaks the streak (the goal is 10 under load); a failing one breaks it."""
     n = 0
     for r in reversed(runs):
         if r["code_tree"] != runs[-1]["code_tree"] or r["rc"] != 0 or r["dirty"]:
             break
-        n += 1
+        n += int(loaded(r))
     return n
 
 
@@ -86,7 +96,8 @@ def run_once(cpu: int, pytest_args: list[str], log_dir: Path, beside: str = "") 
     path.write_text(log)
     line, counts = summary(proc.stdout)
     failed = [ln.split(" ", 1)[1].split(" - ")[0] for ln in proc.stdout.splitlines() if ln.startswith("FAILED ")]
-    return {**code, "busy_processes": cpu, "beside": beside, "pytest_args": pytest_args, "rc": proc.returncode,
+    return {**code, "busy_processes": cpu, "beside": beside, "loaded": bool(cpu or beside), "pytest_args": pytest_args,
+            "rc": proc.returncode,
             "summary": line, "counts": counts, "failed": failed, "wall_s": round(wall, 1), "log": str(path),
             "machine": machine_info(), "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
 

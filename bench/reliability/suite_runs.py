@@ -27,8 +27,9 @@ sys.path.insert(0, str(REPO))
 from bench.machine import machine_info  # noqa: E402
 
 OUT = REPO / "bench" / "results" / "suite_runs.json"
-# what the suite exercises from the repository, for code_tree and the dirty check
-CODE_PATHS = ("skillgen_ros", "test", "scripts")
+# what the suite exercises from the repository, for code_tree and the dirty check: the package, the tests, the
+# scripts, and bench/'s Python (tests import bench modules; bench/results/ and docs may change within a streak)
+CODE_PATHS = ("skillgen_ros", "test", "scripts", ":(glob)bench/**/*.py")
 COUNTS = re.compile(r"(\d+) (passed|failed|error|errors|skipped|xfailed|xpassed)")
 
 
@@ -42,9 +43,13 @@ def _git(*args: str) -> str:
 
 
 def code_tree() -> str:
-    """The tree hash of what the suite exercises (package, tests, scripts), so result/README-only commits keep a
-    streak going."""
-    return ":".join(_git("rev-parse", f"HEAD:{p}") for p in CODE_PATHS)
+    """The tree hashes of what the suite exercises (package, tests, scripts) and one hash over bench/'s Python
+    files, so result/README-only commits keep a streak going."""
+    import hashlib
+
+    trees = [_git("rev-parse", f"HEAD:{p}") for p in CODE_PATHS if not p.startswith(":")]
+    bench_py = [ln for ln in _git("ls-tree", "-r", "HEAD", "bench").splitlines() if ln.endswith(".py")]
+    return ":".join(trees + [hashlib.sha1("\n".join(bench_py).encode()).hexdigest()])
 
 
 def summary(log: str) -> tuple[str, dict[str, int]]:

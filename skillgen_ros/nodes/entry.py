@@ -3,7 +3,7 @@
 A node's imports (rclpy, numba, pybullet, open3d) take from half a second to seconds. A Ctrl-C in
 that window (a launch stopped while it starts) used to raise KeyboardInterrupt inside an import
 and print its traceback. The console script imports only this module, which imports nothing
-heavy, installs the quiet stop handlers (runtime.run_nodes keeps the same event), then imports
+heavy, installs the quiet stop handlers (runtime.run_nodes keeps the same stop flag), then imports
 the node; a stop asked for meanwhile ends the process at once with status 0.
 """
 from __future__ import annotations

@@ -58,6 +58,9 @@ def test_round_trip_gives_the_same_networks_and_config(ckpt, tmp_path):
     old = cfg.to_json()
     del old["train"]["reg_target"]
     assert HSPConfig.from_json(old).train.reg_target == "initiation_target"
+    # and T on the paper's labels
+    del old["train"]["termination_labels"]
+    assert cfg.train.termination_labels == HSPConfig.from_json(old).train.termination_labels == "paper"
 
 
 def test_missing_heads_and_bad_observations_are_clear(ckpt):

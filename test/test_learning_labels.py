@@ -9,7 +9,8 @@ from skillgen_ros.core.learning.data import DemoArrays, TrainingSet, initiation_
 from skillgen_ros.core.learning.normalization import MinMax, ObsStats
 from skillgen_ros.core.learning.rotation import (pos_rot6d_to_pose, pose_to_pos_rot6d, quat_to_rotation_6d,
                                                  rotation_6d_to_matrix, rotation_6d_to_quat)
-from skillgen_ros.core.learning.termination import TerminationFilter, termination_labels
+from skillgen_ros.core.learning.termination import (SETTLED_GRIPPER_M, SETTLED_POS_M, TerminationFilter,
+                                                    settled_tail, termination_labels)
 
 
 def test_termination_labels_flip_the_last_half_of_each_motion_segment():
@@ -26,6 +27,38 @@ def test_termination_labels_flip_the_last_half_of_each_motion_segment():
     np.testing.assert_array_equal(termination_labels(np.ones(4)), [1, 1, 0, 0])
     with pytest.raises(InvalidInputError):
         termination_labels(np.zeros((2, 2)))
+
+
+def _grasp_then_lift():
+    """skill 6 (approach 2, close 1, hold 3) | motion 4 (lift) | skill 3 (the last: never settled)."""
+    mp = np.array([0] * 6 + [1] * 4 + [0] * 3, np.uint8)
+    z = np.array([0.10, 0.05, 0.0, 0.001, 0.0, 0.001, 0.0, 0.01, 0.03, 0.06, 0.06, 0.06, 0.06])
+    pos = np.stack([np.zeros(13), np.zeros(13), z], 1)
+    quat = np.tile([0.0, 0.0, 0.0, 1.0], (13, 1))
+    fingers = np.array([0.04, 0.04, 0.03, 0.02, 0.0205, 0.02] + [0.02] * 7)
+    return mp, pos, quat, np.stack([fingers, fingers], 1)
+
+
+def test_settled_labels_also_call_the_still_end_of_a_skill_terminate():
+    mp, pos, quat, grip = _grasp_then_lift()
+    tail = settled_tail(mp, pos, quat, grip)
+    # the hold (steps 3-5: within the tolerances of step 5) and nothing else; the closing step 2 is 1 cm and
+    # 10 mm of finger travel away; the last skill is followed by no motion
+    np.testing.assert_array_equal(np.flatnonzero(tail), [3, 4, 5])
+    np.testing.assert_array_equal(termination_labels(mp, tail), [0, 0, 0, 1, 1, 1, 1, 1, 0, 0, 0, 0, 0])
+    np.testing.assert_array_equal(termination_labels(mp), [0] * 6 + [1, 1, 0, 0, 0, 0, 0])  # the paper's rule
+    # each tolerance breaks the tail on its own: a turn of 10 deg, 2 mm of finger travel, a 1 cm move
+    turned = quat.copy()
+    turned[3] = Rotation.from_euler("z", 10, degrees=True).as_quat()
+    assert np.flatnonzero(settled_tail(mp, pos, turned, grip)).tolist() == [4, 5]
+    moved = grip.copy()
+    moved[4] += 2 * SETTLED_GRIPPER_M
+    assert np.flatnonzero(settled_tail(mp, pos, quat, moved)).tolist() == [5]
+    far = pos.copy()
+    far[4, 0] += 2 * SETTLED_POS_M
+    assert np.flatnonzero(settled_tail(mp, far, quat, grip)).tolist() == [5]
+    with pytest.raises(InvalidInputError):
+        termination_labels(mp, tail[:-1])
 
 
 def test_termination_needs_five_consecutive_positives():
@@ -115,3 +148,27 @@ def test_reg_target_is_the_initiation_before_augmentation_s_perturbation():
     stats = ObsStats.fit({k: v for k, v in d.obs.items()})
     ts = TrainingSet([d], ["robot0_eef_pos", "robot0_eef_quat"], [], stats, 4, False, 5, None)
     np.testing.assert_allclose(ts.init_tgt[0, :3], [5.0, 0, 0])  # unnormalized here (no MinMax)
+
+
+def test_the_training_set_uses_the_chosen_termination_rule():
+    from skillgen_ros.core.errors import ParameterError
+    from skillgen_ros.core.learning.config import TrainConfig
+    from skillgen_ros.core.learning.data import DatasetReadError
+
+    mp, pos, quat, grip = _grasp_then_lift()
+    n = len(mp)
+    obs = {"robot0_eef_pos": pos, "robot0_eef_quat": quat, "robot0_gripper_qpos": grip}
+    d = DemoArrays(obs, np.zeros((n, 7), np.float32), mp, np.zeros(n, int), np.tile([0.0] * 6 + [1.0], (n, 1)), None)
+    stats = ObsStats.fit(obs)
+
+    def labels(rule, keys=tuple(obs)):
+        return TrainingSet([d], list(keys), [], stats, 4, False, 5, None, term_rule=rule).term
+
+    np.testing.assert_array_equal(labels("paper"), termination_labels(mp))
+    np.testing.assert_array_equal(labels("settled"), termination_labels(mp, settled_tail(mp, pos, quat, grip)))
+    with pytest.raises(DatasetReadError, match="robot0_gripper_qpos"):
+        TrainingSet([DemoArrays({k: v for k, v in obs.items() if k != "robot0_gripper_qpos"}, d.actions, mp,
+                                d.source_demo, d.initiation_target, None)],
+                    ["robot0_eef_pos"], [], stats, 4, False, 5, None, term_rule="settled")
+    with pytest.raises(ParameterError, match="termination_labels"):
+        TrainConfig(termination_labels="late")

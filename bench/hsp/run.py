@@ -231,6 +231,7 @@ def train_network(store: Store, cell: str, network: str, dataset: str, methods, 
     epochs = max(1, a.budget_steps // a.steps_per_epoch)
     tc = TrainConfig(epochs=epochs, steps_per_epoch=a.steps_per_epoch, eval_every=0, device=a.device, seed=a.seed,
                      threads=a.threads)
+    _evaluate_unevaluated(store, cell, network, out / f"step_{rec['steps']:06d}.pt", rec["steps"], methods, a)
     while not rec["finished"] and not (a.budget_minutes and rec["train_seconds"] >= 60 * a.budget_minutes):
         t = time.time()
         r = train(TrainRequest(dataset=dataset, output_dir=str(out), network=net, train=tc,
@@ -238,10 +239,20 @@ def train_network(store: Store, cell: str, network: str, dataset: str, methods, 
         rec["train_seconds"] += time.time() - t
         rec["steps"], rec["finished"] = int(r.config.step), bool(r.finished or r.config.step >= a.budget_steps)
         rec["ms_per_train_step"] = 1000 * rec["train_seconds"] / max(1, rec["steps"])
-        store.save()
         kept = out / f"step_{int(r.config.step):06d}.pt"  # every chunk's checkpoint stays: --reevaluate reads them
         _copy(Path(r.last_path), kept)
+        store.save()
         evaluate_methods(store, cell, network, kept, int(r.config.step), methods, a)
+
+
+def _evaluate_unevaluated(store: Store, cell: str, network: str, kept: Path, step: int, methods, a) -> None:
+    """A run stopped between a chunk's training and its evaluation left `step` unevaluated: evaluate it now,
+    before training goes on (or when training had already finished), so no chunk's result is lost."""
+    done = store.cell(cell)["methods"]
+    missing = [m for m in methods if step not in {e["step"] for e in done.get(m, {}).get("evals", [])}]
+    if step and missing and kept.exists():
+        print(f"  {cell} {network}: step {step} was trained but not evaluated; evaluating {missing}", flush=True)
+        evaluate_methods(store, cell, network, kept, step, missing, a)
 
 
 def kept_checkpoints(folder: Path, max_step: int) -> dict[int, Path]:

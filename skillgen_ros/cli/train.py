@@ -15,7 +15,7 @@ import argparse
 import json
 import logging
 
-from skillgen_ros.core.learning.config import REG_TARGETS, NetworkConfig, TrainConfig
+from skillgen_ros.core.learning.config import REG_TARGETS, TERMINATION_LABEL_RULES, NetworkConfig, TrainConfig
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -48,6 +48,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--reg-target", choices=REG_TARGETS, default=t.reg_target,
                    help="HSP-Reg's target: the initiation before augmentation's perturbation (nominal) or the "
                         "stored, perturbed label")
+    p.add_argument("--termination-labels", choices=TERMINATION_LABEL_RULES, default=t.termination_labels,
+                   help="T's labels: the paper's (motion steps, first half) or also each skill's still tail (settled)")
     p.add_argument("--stop-after", type=int, default=0, help="stop (as Ctrl-C) after N steps of this invocation")
     p.add_argument("--no-progress", action="store_true")
     return p
@@ -61,7 +63,8 @@ def main(argv: list[str]) -> int:
     net = NetworkConfig(rnn_hidden=a.hidden, rnn_layers=a.rnn_layers, mlp_hidden=tuple(a.mlp_hidden))
     tc = TrainConfig(lr=a.lr, batch_size=a.batch_size, epochs=a.epochs, steps_per_epoch=a.steps_per_epoch,
                      valid_ratio=a.valid_ratio, seed=a.seed, eval_every=a.eval_every, eval_rollouts=a.eval_rollouts,
-                     device=a.device, threads=a.threads, reg_target=a.reg_target)
+                     device=a.device, threads=a.threads, reg_target=a.reg_target,
+                     termination_labels=a.termination_labels)
     req = TrainRequest(dataset=a.dataset, output_dir=a.output, network=net, train=tc, images=a.images,
                        demos_dir=a.demos_dir, all_steps=a.all_steps, reg=a.reg, resume=a.resume,
                        stop_after=a.stop_after,

@@ -43,6 +43,7 @@ class NetworkConfig:
 
 
 REG_TARGETS = ("nominal", "initiation_target")  # what HSP-Reg's I learns (data.reg_target)
+TERMINATION_LABEL_RULES = ("paper", "settled")  # what T learns as "terminate" (termination.termination_labels)
 
 
 @dataclass(frozen=True)
@@ -59,12 +60,16 @@ class TrainConfig:
     device: str = "cpu"
     threads: int = 0  # torch CPU threads (0: torch's default); 1 is fastest on a shared, loaded machine
     reg_target: str = "nominal"  # HSP-Reg's target: the un-perturbed initiation or the stored label (data.reg_target)
+    termination_labels: str = "paper"  # "settled" also labels a skill's still tail "terminate" (ours; docs/hsp.md)
 
     def __post_init__(self):
         if self.threads < 0:
             raise ParameterError(f"threads must be >= 0, got {self.threads}")
         if self.reg_target not in REG_TARGETS:
             raise ParameterError(f"reg_target must be one of {list(REG_TARGETS)}, got {self.reg_target!r}")
+        if self.termination_labels not in TERMINATION_LABEL_RULES:
+            raise ParameterError(f"termination_labels must be one of {list(TERMINATION_LABEL_RULES)}, "
+                                 f"got {self.termination_labels!r}")
         if not (self.lr > 0 and self.batch_size >= 1 and self.epochs >= 1 and self.steps_per_epoch >= 1):
             raise ParameterError("lr must be > 0 and batch_size, epochs, steps_per_epoch >= 1")
         if (not 0 <= self.valid_ratio < 1 or self.eval_every < 0 or self.eval_rollouts < 1

@@ -27,7 +27,7 @@ from .config import REG_TARGETS
 from .normalization import MinMax, ObsStats
 from .observation import DERIVED_FROM, DERIVED_KEYS, add_derived, derived_shapes
 from .rotation import pose_to_pos_rot6d
-from .termination import segments, termination_labels
+from .termination import segments, settled_tail, termination_labels
 
 
 log = logging.getLogger("skillgen.train")
@@ -171,6 +171,14 @@ def read_demos(path: str, names: Sequence[str], keys: Sequence[str]) -> list[Dem
     return out
 
 
+def _settled(d: DemoArrays) -> np.ndarray:
+    """The "settled" rule's skill tails (termination.settled_tail) from the demo's raw hand and fingers."""
+    need = ("robot0_eef_pos", "robot0_eef_quat", "robot0_gripper_qpos")
+    if not set(need) <= set(d.obs):
+        raise DatasetReadError(f"termination_labels 'settled' needs {list(need)} among the observations")
+    return settled_tail(d.mp_step, *(d.obs[k] for k in need))
+
+
 def fit_obs_stats(demos: Sequence[DemoArrays], low_dim_keys: Sequence[str]) -> ObsStats:
     return ObsStats.fit({k: np.concatenate([d.obs[k].reshape(len(d.actions), -1) for d in demos])
                          for k in low_dim_keys})
@@ -194,14 +202,15 @@ class TrainingSet:
 
     def __init__(self, demos: Sequence[DemoArrays], low_dim_keys: Sequence[str], image_keys: Sequence[str],
                  stats: ObsStats, seq_length: int, all_steps: bool, init_window: int, init_norm: MinMax | None,
-                 reg_kind: str = "nominal"):
+                 reg_kind: str = "nominal", term_rule: str = "paper"):
         if not demos:
             raise DatasetReadError("no demos in this split")
         self.obs = {k: np.concatenate([stats.normalize(k, d.obs[k].reshape(len(d.actions), -1))
                                        for d in demos]).astype(np.float32) for k in low_dim_keys}
         self.obs.update({k: np.concatenate([d.obs[k] for d in demos]).astype(np.uint8) for k in image_keys})
         self.actions = np.concatenate([d.actions for d in demos])
-        self.term = np.concatenate([termination_labels(d.mp_step) for d in demos])
+        self.term = np.concatenate([termination_labels(d.mp_step, _settled(d) if term_rule == "settled" else None)
+                                    for d in demos])
         starts, ends, init_idx, init_cls, init_tgt = [], [], [], [], []
         off = 0
         for d in demos:

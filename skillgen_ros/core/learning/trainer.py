@@ -220,7 +220,7 @@ def _datasets(cfg: HSPConfig) -> tuple[TrainingSet, TrainingSet | None]:
     def build(names):
         return TrainingSet(read_demos(cfg.dataset_path, names, keys), cfg.low_dim_keys, cfg.image_keys, cfg.obs_stats,
                            cfg.network.seq_length, cfg.all_steps, cfg.train.initiation_window, cfg.initiation_norm,
-                           cfg.train.reg_target)
+                           cfg.train.reg_target, cfg.train.termination_labels)
 
     return build(cfg.train_demos), (build(cfg.valid_demos) if cfg.valid_demos else None)
 

@@ -1,0 +1,76 @@
+"""bench/hsp: a run stopped between a chunk's training and its evaluation loses no result (run.py), and
+retraining one network of a checkpoint keeps the others bit for bit (retrain.py).
+
+The benchmark records a chunk's training before evaluating it (evaluations take minutes); when the
+session ends in between, the rerun must evaluate that chunk before training on (or when training had
+finished), and only for the methods that lack it.
+"""
+from __future__ import annotations
+
+import sys
+from types import SimpleNamespace
+
+from conftest import REPO
+
+sys.path.insert(0, str(REPO))
+from bench.hsp import retrain, run  # noqa: E402
+
+
+def _store(tmp_path, evals):
+    s = run.Store.__new__(run.Store)
+    s.path, s.data = tmp_path / "hsp.json", {"cells": {}}
+    c = s.cell("Threading/D0")
+    for m, steps in evals.items():
+        c["methods"][m] = {"evals": [{"step": k} for k in steps]}
+    return s
+
+
+def _calls(monkeypatch):
+    calls = []
+    monkeypatch.setattr(run, "evaluate_methods", lambda store, cell, net, ckpt, step, methods, a:
+                        calls.append((step, list(methods))))
+    return calls
+
+
+def test_an_unevaluated_chunk_is_evaluated_for_the_methods_that_lack_it(tmp_path, monkeypatch):
+    calls = _calls(monkeypatch)
+    kept = tmp_path / "step_013500.pt"
+    kept.write_bytes(b"x")
+    store = _store(tmp_path, {"HSP-TAMP": [4500, 9000, 13500], "HSP-Class": [4500, 9000]})
+    run._evaluate_unevaluated(store, "Threading/D0", "hsp", kept, 13500,
+                              ["HSP-TAMP", "HSP-Class", "HSP-Reg"], SimpleNamespace())
+    assert calls == [(13500, ["HSP-Class", "HSP-Reg"])]
+
+
+def test_nothing_to_evaluate_when_done_untrained_or_the_checkpoint_is_gone(tmp_path, monkeypatch):
+    calls = _calls(monkeypatch)
+    kept = tmp_path / "step_009000.pt"
+    store = _store(tmp_path, {"HSP-TAMP": [4500, 9000]})
+    run._evaluate_unevaluated(store, "Threading/D0", "hsp", kept, 9000, ["HSP-TAMP"], SimpleNamespace())
+    run._evaluate_unevaluated(store, "Threading/D0", "hsp", kept, 0, ["HSP-Reg"], SimpleNamespace())
+    run._evaluate_unevaluated(store, "Threading/D0", "hsp", kept, 9000, ["HSP-Reg"], SimpleNamespace())  # no file
+    assert calls == []
+
+
+def test_retraining_t_on_settled_labels_keeps_pi_and_records_the_rule(tmp_path_factory, tmp_path):
+    import dataclasses
+
+    import torch
+    from _learning_data import generated_dataset, tiny_checkpoint
+
+    from skillgen_ros.core.learning.checkpoint import load_hsp, read_checkpoint
+
+    src = tiny_checkpoint(tmp_path_factory, generated_dataset(tmp_path_factory))
+    cfg = read_checkpoint(src)[0]
+    cfg = dataclasses.replace(cfg, train=dataclasses.replace(cfg.train, termination_labels="settled"))
+    rec = retrain.retrain_network(str(src), cfg, "termination", str(tmp_path / "t.pt"), 3, 0)
+    assert rec["steps"] == 3 and rec["train_loss_last_epoch"] > 0  # 3 demos: no validation split
+    old, new = load_hsp(src), load_hsp(tmp_path / "t.pt")
+    assert new.config.train.termination_labels == "settled" and old.config.train.termination_labels == "paper"
+    for (k, a), (_, b) in zip(old.nets["policy"].state_dict().items(), new.nets["policy"].state_dict().items()):
+        assert torch.equal(a, b), k
+    assert any(not torch.equal(a, b) for a, b in zip(old.nets["termination"].state_dict().values(),
+                                                     new.nets["termination"].state_dict().values()))
+    retrain.record(tmp_path / "r.json", "Square/D0/settled", rec, {"cpu": "test"})
+    import json
+    assert json.loads((tmp_path / "r.json").read_text())["runs"]["Square/D0/settled"]["steps"] == 3

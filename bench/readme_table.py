@@ -275,13 +275,14 @@ def render() -> str:
     if cells:
         lines += [""] + cells
     from bench.hsp.table import (budget_rows, demos_rows, device_rows, hsp_rows, observation_rows, reg_target_rows,
-                                 size_rows)
+                                 size_rows, termination_rows)
 
     hsp = hsp_rows(load("hsp"))
     if hsp:
         before = load("hsp_absolute_obs")  # the run hsp_budget3x, hsp_h200 and hsp_reg_target continued
         lines += [""] + hsp + observation_rows(before, load("hsp")) + budget_rows(before, load("hsp_budget3x"))
         lines += size_rows(before, load("hsp_budget3x"), load("hsp_h200")) + reg_target_rows(load("hsp_reg_target"))
+        lines += termination_rows(load("hsp_termination_labels"), load("hsp"))
         lines += demos_rows(load("hsp"), load("hsp_200demos"))
         lines += device_rows(load("hsp"), load("hsp_cuda_hsp"), load("hsp_cuda_bc"))
     lines += ["", END]

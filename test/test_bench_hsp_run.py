@@ -74,3 +74,18 @@ def test_retraining_t_on_settled_labels_keeps_pi_and_records_the_rule(tmp_path_f
     retrain.record(tmp_path / "r.json", "Square/D0/settled", rec, {"cpu": "test"})
     import json
     assert json.loads((tmp_path / "r.json").read_text())["runs"]["Square/D0/settled"]["steps"] == 3
+
+
+def test_termination_rows_pair_a_retrained_t_with_the_checkpoints_own_at_the_same_step():
+    from bench.hsp.table import termination_rows
+
+    ev = {"successes": 38, "rollouts": 50, "wilson_95": [0.63, 0.86], "skill_endings": {"0": {"termination": 50}},
+          "mean_steps": 254.3}
+    data = {"runs": {"Threading/D0/step13500/settled/seed0": {"checkpoint_step": 13500, "labels": "settled",
+                                                              "seed": 0, "evaluations": {"HSP-Class": ev}}}}
+    own = {"step": 13500, "successes": 31, "rollouts": 50, "skill_endings": {"0": {"budget": 33}}, "mean_steps": 620.8}
+    base = {"cells": {"Threading/D0": {"methods": {"HSP-Class": {"evals": [{**own, "step": 9000}, own]}}}}}
+    (row,) = termination_rows(data, base)
+    assert "HSP-Class, T on settled labels, seed 0: 38/50 (63-86%" in row and "vs its own T 31/50" in row
+    assert "621 steps" in row and "254 steps a rollout" in row
+    assert "vs its own" not in termination_rows(data, {})[0] and termination_rows({}, base) == []

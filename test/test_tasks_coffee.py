@@ -72,6 +72,8 @@ def test_mimicgen_success_rule_on_hand_built_states():
     assert TASK.is_success(_state(lid_deg=14.9)) and not TASK.is_success(_state(lid_deg=15.1))
     # r_diff = pod holder radius - pod radius = 5.2 mm, in any direction of the machine frame
     assert TASK.is_success(_state(dxy=(0.0051, 0.0))) and not TASK.is_success(_state(dxy=(0.0, -0.0053)))
+    assert C.POD_MISS_ALLOWED == pytest.approx(0.0052, abs=5e-5)
+    assert C.pod_miss([1.0, 2.0, 3.0], [1.003, 2.004, 0.0]) == pytest.approx(0.005)  # x-y only
     # the pod's bottom may not go below the holder's bottom; open lid: the pod check alone passes a high pod
     assert not TASK.is_success(_state(dz=-0.0121))
     assert C.pod_in_holder(M, POD, _state(lid_deg=120.0, dz=0.03))

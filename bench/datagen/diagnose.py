@@ -85,11 +85,11 @@ def _coffee_stage(obs: dict) -> str:
     lid = np.asarray(obs["coffee_machine_joints"], float)[:, 0]
     if pod[:, 2].max() - pod[0, 2] < LIFTED:
         return "1 pod not lifted"
-    holder = R.from_quat(machine[-1, 3:]).apply(C.HOLDER_POS) + machine[-1, :3]
-    miss = float(np.linalg.norm(pod[-1, :2] - holder[:2]))
-    if miss > C.HOLDER_HALF[0] - C.POD_HALF[0]:
+    holder = R.from_quat(machine[-1, 3:]).apply(C.coffee_machine().keypoint("pod_holder")) + machine[-1, :3]
+    miss = C.pod_miss(holder, pod[-1])
+    if miss > C.POD_MISS_ALLOWED:
         return f"2 pod beside the holder, x-y miss {5 * int(miss * 200)}-{5 * int(miss * 200) + 5} mm"
-    if pod[-1, 2] - C.POD_HALF[2] < holder[2] - C.HOLDER_HALF[2] - 1e-3:
+    if C.pod_below_holder(holder, pod[-1]):
         return "3 pod below the holder's bottom"
     if lid[-1] >= C.LID_CLOSED_TOLERANCE:
         deg = 15 * int(np.degrees(lid[-1]) // 15)

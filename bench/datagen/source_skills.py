@@ -6,7 +6,8 @@ collision or leads the skill astray; the wrist's turn within a skill decides whe
 stays inside panda_joint7's range when its object is turned (Coffee D2, docs/tasks.md). Per task and skill,
 median over the shipped source demos (bags/<task>): the distance from the initiation to the first gripper
 change, its height part, the steps in between, and the hand's yaw sweep over the whole skill (the heading of
-the hand's x axis in the object's x-y plane, unwrapped; a turn about the vertical for a top-down hand). Reads the bags only; no simulation.
+the hand's x axis in the object's x-y plane, unwrapped; a turn about the vertical for a top-down hand).
+Reads the bags only; no simulation.
 
     .venv/bin/python bench/datagen/source_skills.py [--tasks Square Coffee ...]
 

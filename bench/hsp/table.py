@@ -153,6 +153,27 @@ def reg_target_rows(data: dict) -> list[str]:
             "steps, pi and T unchanged): " + "; ".join(parts) + "."]
 
 
+def termination_rows(data: dict, base: dict) -> list[str]:
+    """HSP-Class / HSP-Reg with T retrained on another label rule (bench/hsp/retrain_termination.py), pi and I
+    unchanged, beside the same checkpoint's own T (the paper's rule) from the benchmark (`base`: hsp.json)."""
+    parts = []
+    for key, r in sorted(data.get("runs", {}).items()):
+        cell, step = "/".join(key.split("/")[:2]), r["checkpoint_step"]
+        own = base.get("cells", {}).get(cell, {}).get("methods", {})
+        for m, e in sorted(r["evaluations"].items()):
+            mine = next((x for x in own.get(m, {}).get("evals", []) if x["step"] == step), None)
+            lo, hi = e["wilson_95"]
+            parts.append(f"{cell} step {step} {m}, T on {r['labels']} labels, seed {r['seed']}: {e['successes']}/"
+                         f"{e['rollouts']} ({100 * lo:.0f}-{100 * hi:.0f}%; skill endings {e['skill_endings']}; "
+                         f"{e['mean_steps']:.0f} steps a rollout)"
+                         + (f" vs its own T {mine['successes']}/{mine['rollouts']} (skill endings "
+                            f"{mine['skill_endings']}; {mine['mean_steps']:.0f} steps)" if mine else ""))
+    if not parts:
+        return []
+    return ["- T's labels, ours (bench/results/hsp_termination_labels.json; T retrained alone for the checkpoint's "
+            "own steps, pi and I unchanged, the benchmark's reset seeds): " + "; ".join(parts) + "."]
+
+
 def observation_rows(old: dict, new: dict) -> list[str]:
     """The same protocol before and after the networks read each object's pose in the hand frame
     (`object_to_eef`; docs/hsp.md "Observations"): best per method, world poses only -> both."""

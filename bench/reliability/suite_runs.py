@@ -29,7 +29,8 @@ from bench.machine import machine_info  # noqa: E402
 OUT = REPO / "bench" / "results" / "suite_runs.json"
 # what the suite exercises from the repository, for code_tree and the dirty check: the package, the tests, the
 # scripts, and bench/'s Python (tests import bench modules; bench/results/ and docs may change within a streak)
-CODE_PATHS = ("skillgen_ros", "test", "scripts", ":(glob)bench/**/*.py")
+BENCH = "bench"  # its *.py files, at any depth
+CODE_PATHS = ("skillgen_ros", "test", "scripts", f":(glob){BENCH}/**/*.py")
 COUNTS = re.compile(r"(\d+) (passed|failed|error|errors|skipped|xfailed|xpassed)")
 
 
@@ -48,7 +49,8 @@ def code_tree() -> str:
     import hashlib
 
     trees = [_git("rev-parse", f"HEAD:{p}") for p in CODE_PATHS if not p.startswith(":")]
-    bench_py = [ln for ln in _git("ls-tree", "-r", "HEAD", "bench").splitlines() if ln.endswith(".py")]
+    # ls-tree takes no glob pathspec: the same set as CODE_PATHS' BENCH glob, listed from HEAD
+    bench_py = [ln for ln in _git("ls-tree", "-r", "HEAD", BENCH).splitlines() if ln.endswith(".py")]
     return ":".join(trees + [hashlib.sha1("\n".join(bench_py).encode()).hexdigest()])
 
 

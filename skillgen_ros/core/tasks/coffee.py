@@ -144,6 +144,19 @@ def lid_closed(machine: ObjectSpec, state: SceneState) -> bool:
     return bool(lid_angle(machine, state) < LID_CLOSED_TOLERANCE)
 
 
+POD_MISS_ALLOWED = HOLDER_HALF[0] - POD_HALF[0]  # coffee.py r_diff: holder radius - pod radius (5.2 mm)
+
+
+def pod_miss(holder: np.ndarray, pod: np.ndarray) -> float:
+    """The pod centre's x-y distance from the holder's (world positions); _check_pod allows POD_MISS_ALLOWED."""
+    return float(np.linalg.norm(np.asarray(pod, float)[:2] - np.asarray(holder, float)[:2]))
+
+
+def pod_below_holder(holder: np.ndarray, pod: np.ndarray) -> bool:
+    """_check_pod's second rule: the pod's bottom below the holder's bottom."""
+    return bool(pod[2] - POD_HALF[2] < holder[2] - HOLDER_HALF[2])
+
+
 def pod_in_holder(machine: ObjectSpec, pod: ObjectSpec, state: SceneState) -> bool:
     """coffee.py Coffee._check_pod: the pod's centre within r_diff = holder radius - pod radius (5.2 mm) of the
     holder's in x-y, its bottom not below the holder's bottom and its top not above the lid's underside."""
@@ -151,9 +164,9 @@ def pod_in_holder(machine: ObjectSpec, pod: ObjectSpec, state: SceneState) -> bo
     holder = m.rotation.apply(machine.keypoint("pod_holder")) + m.position
     lid = link_point(machine, m, joint_values(machine, state.joints), "lid", "body_origin")
     p = state.poses[pod.id].position
-    if np.linalg.norm(p[:2] - holder[:2]) > HOLDER_HALF[0] - POD_HALF[0]:
+    if pod_miss(holder, p) > POD_MISS_ALLOWED:
         return False
-    return not (p[2] - POD_HALF[2] < holder[2] - HOLDER_HALF[2] or p[2] + POD_HALF[2] > lid[2] - LID_HALF[2])
+    return not (pod_below_holder(holder, p) or p[2] + POD_HALF[2] > lid[2] - LID_HALF[2])
 
 
 def coffee_success(machine: ObjectSpec, pod: ObjectSpec, state: SceneState) -> bool:

@@ -97,6 +97,19 @@ def _coffee_stage(obs: dict) -> str:
     return "5 lid closed, pod on the holder's rim (top above the lid's underside)"
 
 
+def _set_pod_mass(task: str, kg: float) -> None:
+    """Build the Coffee pod with another mass (the spec is cached: set before the task is first built)."""
+    from skillgen_ros.core.tasks import coffee as C
+    from skillgen_ros.core.tasks import get_task
+
+    if task != "Coffee" or not kg > 0:
+        raise SystemExit(f"--pod-mass needs --task Coffee and a mass > 0, got {task} {kg}")
+    C.POD_MASS = kg
+    C.coffee_pod.cache_clear()
+    if [o.mass for o in get_task(task).objects if o.id == "coffee_pod"] != [kg]:
+        raise SystemExit("the Coffee task was built before --pod-mass could apply")
+
+
 STAGES = {"CoffeePreparation": _coffee_prep_stage, "Coffee": _coffee_stage}   # tasks whose failures --stages can place
 DRAGGED = 0.02  # m: an object that slid this far across the table before it was first lifted was dragged
 
@@ -236,9 +249,13 @@ def main(argv=None) -> int:
     ap.add_argument("--augment", action="store_true", help="skillgen with initiation augmentation (+IA)")
     ap.add_argument("--mimicgen-offsets", type=int, nargs=2, metavar=("LO", "HI"),
                     help="replace the task's MimicGen subtask_term_offset_range (an experiment)")
+    ap.add_argument("--pod-mass", type=float, default=0.0, metavar="KG",
+                    help="Coffee only: the pod's mass instead of coffee.POD_MASS (an experiment: MimicGen's is 0.007)")
     a = ap.parse_args(argv)
     if a.stages and a.task not in STAGES:
         ap.error(f"--stages knows the stages of {', '.join(STAGES)} only")
+    if a.pod_mass:
+        _set_pod_mass(a.task, a.pod_mass)
     out = json.loads(OUT.read_text()) if OUT.exists() else {"entries": []}
     out["machine"] = machine_info()
     for noise in a.noise:
@@ -248,11 +265,14 @@ def main(argv=None) -> int:
                         f"--attempts {a.attempts} --noise {noise} --seed {a.seed} --profile {a.profile} "
                         f"--method {a.method}" + (f" --touch {a.touch}" if a.touch else "")
                         + (" --stages" if a.stages else "") + (" --augment" if a.augment else "")
-                        + (" --mimicgen-offsets {} {}".format(*a.mimicgen_offsets) if a.mimicgen_offsets else ""))
+                        + (" --mimicgen-offsets {} {}".format(*a.mimicgen_offsets) if a.mimicgen_offsets else "")
+                        + (f" --pod-mass {a.pod_mass}" if a.pod_mass else ""))
+        if a.pod_mass:
+            e["pod_mass"] = a.pod_mass
 
         def key(x):
             return (x["task"], x["variant"], x.get("method", "skillgen"), x["action_noise"], x["seed"], x["profile"],
-                    tuple(x.get("mimicgen_offsets", ())), x.get("augment", False))
+                    tuple(x.get("mimicgen_offsets", ())), x.get("augment", False), x.get("pod_mass", 0.0))
         out["entries"] = [x for x in out["entries"] if key(x) != key(e)] + [e]
         OUT.write_text(json.dumps(out, indent=1) + "\n")
         per = ", ".join(f"{k}: {v['successes']}/{v['attempts']}" for k, v in e["by_source_demo"].items())

@@ -89,3 +89,16 @@ def test_termination_rows_pair_a_retrained_t_with_the_checkpoints_own_at_the_sam
     assert "HSP-Class, T on settled labels, seed 0: 38/50 (63-86%" in row and "vs its own T 31/50" in row
     assert "621 steps" in row and "254 steps a rollout" in row
     assert "vs its own" not in termination_rows(data, {})[0] and termination_rows({}, base) == []
+
+
+def test_both_retrain_scripts_share_one_parser_and_record_the_rerun_command():
+    from bench.hsp import retrain_reg, retrain_termination
+
+    assert retrain_reg.retrain_parser is retrain_termination.retrain_parser is retrain.retrain_parser
+    p = retrain.retrain_parser("Retrain X.\n\nmore", "X", "out.json")
+    a = p.parse_args(["--checkpoint", "c.pt", "--rollouts", "7"])
+    assert (a.checkpoint, a.steps, a.seed, a.rollouts, a.out) == ("c.pt", 0, 0, 7, "out.json")
+    assert retrain.rerun_command("bench/hsp/retrain_reg.py", ["--checkpoint", "a b.pt"]) == \
+        ".venv/bin/python bench/hsp/retrain_reg.py --checkpoint 'a b.pt'"
+    s = SimpleNamespace(to_json=lambda: {"success_rate": 0.5, "reset_seeds": [1, 2]})
+    assert retrain.evaluation_record(s, 3.0) == {"success_rate": 0.5, "eval_seconds": 3.0}

@@ -111,10 +111,11 @@ def test_skill_diagnosis_names_which_on_peg_condition_failed():
     assert sd.placement(0.01, 0.02) == "seated"  # centred and down the peg: robosuite on_peg
     assert sd.placement(0.01, 0.119) == "on_top"  # centred, resting on the 13 cm peg's top
     assert sd.placement(0.03, 0.02) == "beside"  # on_peg's |dx|, |dy| < 3 cm is strict
-    rows = [{"success": False, "skills": {"1": {"ended": "budget", "placement": "on_top", "closed_steps": 87},
+    rows = [{"success": False, "reason": "POLICY_TIMEOUT", "skills": {"1": {"ended": "budget", "placement": "on_top", "closed_steps": 87},
                                           "2": {"ended": "budget", "closed_steps": 0}}},
-            {"success": True, "skills": {"1": {"ended": "goal", "placement": "seated", "closed_steps": 60},
+            {"success": True, "reason": "OK", "skills": {"1": {"ended": "goal", "placement": "seated", "closed_steps": 60},
                                          "2": {"ended": "goal", "closed_steps": 5}}}]
     s = sd.summarize(rows)
     assert s["successes"] == 1 and s["skills"]["1"]["placement"] == {"on_top": 1, "seated": 1}
+    assert s["reasons"] == {"POLICY_TIMEOUT": 1, "OK": 1}
     assert s["skills"]["2"]["never_closed"] == 1 and s["skills"]["2"]["ended"] == {"budget": 1, "goal": 1}

@@ -90,6 +90,7 @@ def skill_rows(tracer: SkillTracer, result) -> dict:
 def summarize(rows: list[dict]) -> dict:
     skills = sorted({k for r in rows for k in r["skills"]}, key=int)
     return {"rollouts": len(rows), "successes": sum(r["success"] for r in rows),
+            "reasons": dict(Counter(r["reason"] for r in rows)),
             "skills": {k: {"ended": dict(Counter(r["skills"][k]["ended"] for r in rows if k in r["skills"])),
                            "placement": dict(Counter(r["skills"][k]["placement"] for r in rows
                                                      if "placement" in r["skills"].get(k, {}))),
@@ -128,7 +129,7 @@ def main(argv=None) -> int:
             seed = rollout_seed(a.seed, i)
             r = run_rollout(env, policy, spec, seed, variant, DeployConfig(mode=a.mode), demos,
                             on_progress=tracer.progress)
-            rows.append({"reset_seed": seed, "success": r.success, "reason": r.reason.value,
+            rows.append({"reset_seed": seed, "success": r.success, "reason": r.reason.value, "message": r.message,
                          "skills": skill_rows(tracer, r)})
             print(rows[-1], flush=True)
     finally:

@@ -1,5 +1,6 @@
 """bench/hsp: a run stopped between a chunk's training and its evaluation loses no result (run.py), and
-retraining one network of a checkpoint keeps the others bit for bit (retrain.py).
+retraining one network of a checkpoint keeps the others bit for bit (retrain.py), and the skill
+diagnosis names which on_peg condition a placement failed (skill_diagnosis.py).
 
 The benchmark records a chunk's training before evaluating it (evaluations take minutes); when the
 session ends in between, the rerun must evaluate that chunk before training on (or when training had
@@ -89,3 +90,32 @@ def test_termination_rows_pair_a_retrained_t_with_the_checkpoints_own_at_the_sam
     assert "HSP-Class, T on settled labels, seed 0: 38/50 (63-86%" in row and "vs its own T 31/50" in row
     assert "621 steps" in row and "254 steps a rollout" in row
     assert "vs its own" not in termination_rows(data, {})[0] and termination_rows({}, base) == []
+
+
+def test_both_retrain_scripts_share_one_parser_and_record_the_rerun_command():
+    from bench.hsp import retrain_reg, retrain_termination
+
+    assert retrain_reg.retrain_parser is retrain_termination.retrain_parser is retrain.retrain_parser
+    p = retrain.retrain_parser("Retrain X.\n\nmore", "X", "out.json")
+    a = p.parse_args(["--checkpoint", "c.pt", "--rollouts", "7"])
+    assert (a.checkpoint, a.steps, a.seed, a.rollouts, a.out) == ("c.pt", 0, 0, 7, "out.json")
+    assert retrain.rerun_command("bench/hsp/retrain_reg.py", ["--checkpoint", "a b.pt"]) == \
+        ".venv/bin/python bench/hsp/retrain_reg.py --checkpoint 'a b.pt'"
+    s = SimpleNamespace(to_json=lambda: {"success_rate": 0.5, "reset_seeds": [1, 2]})
+    assert retrain.evaluation_record(s, 3.0) == {"success_rate": 0.5, "eval_seconds": 3.0}
+
+
+def test_skill_diagnosis_names_which_on_peg_condition_failed():
+    from bench.hsp import skill_diagnosis as sd
+
+    assert sd.placement(0.01, 0.02) == "seated"  # centred and down the peg: robosuite on_peg
+    assert sd.placement(0.01, 0.119) == "on_top"  # centred, resting on the 13 cm peg's top
+    assert sd.placement(0.03, 0.02) == "beside"  # on_peg's |dx|, |dy| < 3 cm is strict
+    rows = [{"success": False, "reason": "POLICY_TIMEOUT", "skills": {"1": {"ended": "budget", "placement": "on_top", "closed_steps": 87},
+                                          "2": {"ended": "budget", "closed_steps": 0}}},
+            {"success": True, "reason": "OK", "skills": {"1": {"ended": "goal", "placement": "seated", "closed_steps": 60},
+                                         "2": {"ended": "goal", "closed_steps": 5}}}]
+    s = sd.summarize(rows)
+    assert s["successes"] == 1 and s["skills"]["1"]["placement"] == {"on_top": 1, "seated": 1}
+    assert s["reasons"] == {"POLICY_TIMEOUT": 1, "OK": 1}
+    assert s["skills"]["2"]["never_closed"] == 1 and s["skills"]["2"]["ended"] == {"budget": 1, "goal": 1}

@@ -6,8 +6,11 @@ steps is what the joint run would have given it, at minutes instead of hours.
 """
 from __future__ import annotations
 
+import argparse
 import json
 import os
+import shlex
+import sys
 import time
 from pathlib import Path
 
@@ -44,6 +47,28 @@ def retrain_network(checkpoint: str, cfg, name: str, out_path: str, steps: int, 
     save_checkpoint(out_path, cfg, nets)
     return {"steps": steps, "train_seconds": seconds, "train_loss_last_epoch": float(np.mean(losses[-100:])),
             "valid": {k: float(x) for k, x in v.items()}}
+
+
+def retrain_parser(doc: str, network: str, out: str) -> argparse.ArgumentParser:
+    """The arguments every retrain script shares; each adds the option it tests."""
+    p = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    p.add_argument("--checkpoint", required=True)
+    p.add_argument("--steps", type=int, default=0, help=f"{network}'s training steps (0: the checkpoint's own)")
+    p.add_argument("--seed", type=int, default=0,
+                   help=f"{network}'s initial weights and batches, and the evaluation seed")
+    p.add_argument("--rollouts", type=int, default=50)
+    p.add_argument("--out", default=out)
+    return p
+
+
+def rerun_command(script: str, argv) -> str:
+    """The command that reruns this retrain, for its record."""
+    return shlex.join([".venv/bin/python", script, *(argv if argv is not None else sys.argv[1:])])
+
+
+def evaluation_record(summary, seconds: float) -> dict:
+    """An evaluation summary without its (long) seed list, with its wall time."""
+    return {**{k: v for k, v in summary.to_json().items() if k != "reset_seeds"}, "eval_seconds": seconds}
 
 
 def record(out: Path, key: str, rec: dict, machine: dict) -> None:

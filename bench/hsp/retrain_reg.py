@@ -13,16 +13,15 @@ and target, with the command that reruns it.
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
-import shlex
 import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from bench.hsp.retrain import record, retrain_network  # noqa: E402
+from bench.hsp.retrain import (evaluation_record, record, rerun_command, retrain_network,  # noqa: E402
+                               retrain_parser)
 from bench.machine import machine_info  # noqa: E402
 
 
@@ -42,13 +41,8 @@ def retrain(checkpoint: str, target: str, out_path: str, steps: int | None, seed
 def main(argv=None) -> int:
     from skillgen_ros.core.learning.config import REG_TARGETS
 
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--checkpoint", required=True)
+    p = retrain_parser(__doc__, "I", str(ROOT / "bench" / "results" / "hsp_reg_target.json"))
     p.add_argument("--target", choices=REG_TARGETS, default="nominal")
-    p.add_argument("--steps", type=int, default=0, help="I's training steps (0: the checkpoint's own)")
-    p.add_argument("--seed", type=int, default=0, help="I's initial weights and batches, and the evaluation seed")
-    p.add_argument("--rollouts", type=int, default=50)
-    p.add_argument("--out", default=str(ROOT / "bench" / "results" / "hsp_reg_target.json"))
     a = p.parse_args(argv)
     from skillgen_ros.core.deploy import evaluate
     from skillgen_ros.core.learning.checkpoint import read_checkpoint
@@ -59,8 +53,9 @@ def main(argv=None) -> int:
            **retrain(a.checkpoint, a.target, str(new), a.steps, a.seed)}
     t = time.time()
     s = evaluate(str(new), src.task, src.variant, "reg", a.rollouts, a.seed)
-    rec.update(evaluation={k: v for k, v in s.to_json().items() if k != "reset_seeds"}, eval_seconds=time.time() - t,
-               command=shlex.join([".venv/bin/python", "bench/hsp/retrain_reg.py", *(argv or sys.argv[1:])]))
+    ev = evaluation_record(s, time.time() - t)
+    rec.update(evaluation={k: v for k, v in ev.items() if k != "eval_seconds"}, eval_seconds=ev["eval_seconds"],
+               command=rerun_command("bench/hsp/retrain_reg.py", argv))
     print(f"{src.task} {src.variant} HSP-Reg, I on {a.target} ({rec['steps']} steps, {rec['train_seconds']:.0f} s): "
           f"{s.line()}", flush=True)
     record(Path(a.out), f"{src.task}/{src.variant}/step{src.step}/{a.target}/seed{a.seed}", rec, machine_info())

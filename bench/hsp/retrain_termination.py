@@ -13,16 +13,15 @@ Results go to --out under the cell, step, rule and seed, with the command that r
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
-import shlex
 import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from bench.hsp.retrain import record, retrain_network  # noqa: E402
+from bench.hsp.retrain import (evaluation_record, record, rerun_command, retrain_network,  # noqa: E402
+                               retrain_parser)
 from bench.machine import machine_info  # noqa: E402
 
 MODES = {"HSP-Class": "class", "HSP-Reg": "reg"}
@@ -31,14 +30,9 @@ MODES = {"HSP-Class": "class", "HSP-Reg": "reg"}
 def main(argv=None) -> int:
     from skillgen_ros.core.learning.config import TERMINATION_LABEL_RULES
 
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--checkpoint", required=True)
+    p = retrain_parser(__doc__, "T", str(ROOT / "bench" / "results" / "hsp_termination_labels.json"))
     p.add_argument("--labels", choices=TERMINATION_LABEL_RULES, default="settled")
-    p.add_argument("--steps", type=int, default=0, help="T's training steps (0: the checkpoint's own)")
-    p.add_argument("--seed", type=int, default=0, help="T's initial weights and batches, and the evaluation seed")
-    p.add_argument("--rollouts", type=int, default=50)
     p.add_argument("--methods", nargs="+", choices=sorted(MODES), default=["HSP-Class", "HSP-Reg"])
-    p.add_argument("--out", default=str(ROOT / "bench" / "results" / "hsp_termination_labels.json"))
     a = p.parse_args(argv)
     from skillgen_ros.core.deploy import evaluate
     from skillgen_ros.core.learning.checkpoint import load_hsp, read_checkpoint
@@ -52,13 +46,12 @@ def main(argv=None) -> int:
            **retrain_network(a.checkpoint, cfg, "termination", str(new), int(a.steps or src.step), a.seed),
            "evaluations": {}}
     key = f"{src.task}/{src.variant}/step{src.step}/{a.labels}/seed{a.seed}"
-    rec["command"] = shlex.join([".venv/bin/python", "bench/hsp/retrain_termination.py", *(argv or sys.argv[1:])])
+    rec["command"] = rerun_command("bench/hsp/retrain_termination.py", argv)
     policy = load_hsp(str(new), expect_task=src.task)
     for m in a.methods:
         t = time.time()
         s = evaluate(str(new), src.task, src.variant, MODES[m], a.rollouts, a.seed, policy=policy)
-        rec["evaluations"][m] = {**{k: v for k, v in s.to_json().items() if k != "reset_seeds"},
-                                 "eval_seconds": time.time() - t}
+        rec["evaluations"][m] = evaluation_record(s, time.time() - t)
         print(f"{src.task} {src.variant} {m}, T on {a.labels} labels ({rec['steps']} steps): {s.line()}", flush=True)
         record(Path(a.out), key, rec, machine_info())
     return 0

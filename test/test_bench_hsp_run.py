@@ -119,3 +119,91 @@ def test_skill_diagnosis_names_which_on_peg_condition_failed():
     assert s["successes"] == 1 and s["skills"]["1"]["placement"] == {"on_top": 1, "seated": 1}
     assert s["reasons"] == {"POLICY_TIMEOUT": 1, "OK": 1}
     assert s["skills"]["2"]["never_closed"] == 1 and s["skills"]["2"]["ended"] == {"budget": 1, "goal": 1}
+
+
+def test_the_diagnostics_share_one_rollout_loop_over_the_benchmarks_reset_seeds(tmp_path_factory):
+    from _learning_data import generated_dataset, tiny_checkpoint
+
+    from bench.hsp import bc_diagnosis, diagnosis, skill_diagnosis
+    from skillgen_ros.core.deploy.seeds import rollout_seed
+
+    assert bc_diagnosis.diagnose_rollouts is skill_diagnosis.diagnose_rollouts is diagnosis.diagnose_rollouts
+    src = tiny_checkpoint(tmp_path_factory, generated_dataset(tmp_path_factory))
+    seen = []
+
+    def make_row(env, policy, spec):
+        seen.append(env)
+        return lambda seed: {"seed": seed, "task": spec.name, "variant": policy.config.variant}
+
+    policy, spec, rows = diagnosis.diagnose_rollouts(str(src), 3, 2, make_row)
+    assert [r["seed"] for r in rows] == [rollout_seed(3, 0), rollout_seed(3, 1)]
+    assert rows[0]["task"] == spec.name == policy.config.task and len(seen) == 1
+
+
+def test_keypoint_world_is_the_point_the_success_rules_read():
+    import numpy as np
+
+    from skillgen_ros.core.geometry import Pose
+    from skillgen_ros.core.tasks import get_task, suite
+
+    spec = get_task("Square")
+    nut = spec.objects[0]
+    pose = Pose([0.1, -0.2, 0.9], [0.0, 0.0, np.sin(0.4), np.cos(0.4)])  # turned 46 deg about z
+    local = np.asarray(nut.keypoint("body_origin"), float)
+    np.testing.assert_allclose(suite.keypoint_world(nut, pose, "body_origin"),
+                               pose.matrix()[:3, :3] @ local + pose.position, atol=1e-12)
+
+
+def test_parallel_shards_are_fixed_attempt_ranges_sized_by_the_rate_so_far():
+    from bench.hsp.shards import PRIOR_RATE, next_batch
+
+    assert next_batch([], 1000, 100, 1, 5) == [(0, 500, 100)]  # one worker: stop at 100 successes, cap 5x
+    size = -(-100 // PRIOR_RATE)
+    assert next_batch([], 1000, 100, 2, 5) == [(0, size, 0), (size, size, 0)]
+    done = [{"attempts": 400, "successes": 100}, {"attempts": 400, "successes": 100}]  # 25% so far
+    assert next_batch(done, 1000, 100, 2, 5) == [(800, 400, 0), (1200, 400, 0)]
+    assert next_batch(done, 250, 100, 2, 5) == [(800, 200, 0)]  # 50 to go: one shard of ~50 successes
+    assert next_batch(done, 200, 100, 2, 5) == []
+
+
+def test_two_generation_workers_write_the_dataset_one_worker_writes(tmp_path, monkeypatch):
+    """The first N successes in attempt order, whatever the split: the same demos, bit for bit."""
+    import h5py
+    import numpy as np
+
+    from bench.hsp import shards
+    from skillgen_ros.core.dataset.hdf5 import merge_datasets
+
+    monkeypatch.setattr(shards, "PRIOR_RATE", 0.9)  # small batches: Square D0 succeeds ~90%
+    merged = {}
+    for workers in (1, 2):
+        root, recs = tmp_path / f"w{workers}", []
+
+        def job_of(first, attempts, want, out):
+            return shards.ShardJob("Square", "D0", "skillgen", False, 7, first, attempts, want, out)
+        files = shards.generate(recs, root, job_of, 3, 2, workers, 5, lambda: None)
+        merged[workers] = str(root / "demo.hdf5")
+        merge_datasets(files, merged[workers], keep=shards.first_n_keep(files, 3))
+        assert sum(r["successes"] for r in recs) >= 3
+    assert shards.demo_indices([merged[1]]) == shards.demo_indices([merged[2]])
+    assert len(shards.demo_indices([merged[1]])) == 3
+    with h5py.File(merged[1], "r") as a, h5py.File(merged[2], "r") as b:
+        for name in a["data"]:
+            np.testing.assert_array_equal(a["data"][name]["actions"][()], b["data"][name]["actions"][()])
+            np.testing.assert_array_equal(a["data"][name]["obs"]["robot0_eef_pos"][()],
+                                          b["data"][name]["obs"]["robot0_eef_pos"][()])
+
+
+def test_evaluation_rollouts_split_over_workers_summarize_as_one_process(tmp_path_factory):
+    from _learning_data import generated_dataset, tiny_checkpoint
+
+    from bench.hsp.evaluation import evaluate_modes, split
+    from skillgen_ros.core.deploy import evaluate
+
+    assert split(50, 2) == [(0, 25), (25, 25)] and split(5, 3) == [(0, 2), (2, 1), (3, 2)] and split(1, 2) == [(0, 1)]
+    src = str(tiny_checkpoint(tmp_path_factory, generated_dataset(tmp_path_factory)))
+    one = evaluate(src, "Square", "D0", "tamp", 2, 5)
+    (two,) = evaluate_modes(src, "Square", "D0", ["tamp"], 2, 5, "cpu", 2).values()
+    a, b = one.to_json(), two.to_json()
+    a.pop("inference_ms_per_step"), b.pop("inference_ms_per_step")  # timing, not outcome
+    assert a == b and a["reset_seeds"] == [r.reset_seed for r in two.results]

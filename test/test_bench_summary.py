@@ -35,3 +35,24 @@ def test_d1_d2_margin_needs_every_cell_and_reuses_mimicgen_across_profiles():
     assert (m["paper_skillgen"], m["paper_mimicgen"], m["paper_margin"]) == pytest.approx((80.12, 32.38, 47.74), abs=0.01)
     assert s["skillgen_ros"]["d1_d2_margin"]["margin"] == 70.0  # MimicGen has no profile: the same runs
     assert s["skillgen_ros"]["skillgen"]["initiation_candidates"]["per_skill"] == {"1": 30, "2": 6}
+
+
+def test_diagnose_counts_the_plans_each_start_repair_served():
+    from types import SimpleNamespace
+
+    from bench.datagen import diagnose
+
+    msgs = iter([("SUCCESS", "9 waypoints; start: wrist touches square_nut, square_peg (allowed on the retreat)"),
+                 ("SUCCESS", "7 waypoints; start in collision: moved 0.12 rad in the null space"),
+                 ("START_IN_COLLISION", "start configuration collides"), ("SUCCESS", "5 waypoints, 1.20 s")])
+
+    def plan(*args, **kwargs):
+        status, message = next(msgs)
+        return SimpleNamespace(status=SimpleNamespace(name=status), message=message)
+
+    env = SimpleNamespace(planner=SimpleNamespace(plan=plan))
+    seen = diagnose._count_start_repairs(env)
+    for _ in range(4):
+        env.planner.plan(None, None)
+    assert seen["plans"] == 4 and seen["START_IN_COLLISION"] == 1
+    assert seen["wrist_backout"] == 1 and seen["null_space_escape"] == 1 and seen["hand_backout"] == 0

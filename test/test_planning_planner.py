@@ -1,10 +1,12 @@
 """MotionPlanner: around a wall, transfer clearance, straight retreat/approach, status codes."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from skillgen_ros.core.geometry import Pose
-from skillgen_ros.core.planning.collision import LINKS, AttachedObject, Box, CollisionModel
+from skillgen_ros.core.planning.collision import LINKS, AllowedContacts, AttachedObject, Box, CollisionModel
 from skillgen_ros.core.planning.ik import IKSolver
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.planning.phases import line_deviation, orientation_deviation
@@ -197,6 +199,49 @@ def test_start_with_the_hand_against_a_fixture_backs_out_along_the_retreat(setup
         cm.set_boxes([block, _box("pillar", kin.link_poses(q0)["panda_link4"][:3, 3], [0.03, 0.03, 0.03])])
         assert planner.plan(q0, target, timeout=2.0).status is PlanStatus.START_IN_COLLISION
     finally:
+        cm.set_boxes([])
+
+
+def test_a_wrist_beside_the_released_objects_support_backs_out_along_the_retreat(setup):
+    """After a place that pushed a nut down its peg, the wrist (panda_link7) can sit inside the
+    spheres' padding of the peg's top. No self-motion moves link7 (it is rigid with the hand), so
+    the null-space escape cannot help: the wrist may touch what was just released and its support
+    on the retreat, as the hand may, and nothing else."""
+    kin, cm, planner = setup
+    q0 = planner.ik.solve(Pose([0.5, 0.0, 0.12], DOWN).matrix(), seed_q=Q_HOME, timeout=5.0).solutions[0]
+    S = cm.sphere_world(q0)
+    d = kin.fk(q0)[:3, 0]  # across the fingers' axis: the hand is narrow there
+    wrist = np.flatnonzero(cm.robot.group == LINKS.index("panda_link7"))
+    i = wrist[np.argmax(S[wrist, :3] @ d + S[wrist, 3])]
+    half = 0.01
+    top = _box("peg", S[i, :3] + d * (S[i, 3] + cm.margin - 0.0028 + half), [half] * 3)  # 2.2 mm from the sphere
+    cm.set_boxes([top])
+    try:
+        hand_only = AllowedContacts(hand_object=("nut", "peg"))
+        assert cm.in_collision(q0[None], allow=hand_only)[0]
+        assert not cm.in_collision(q0[None], allow=replace(hand_only, wrist=True))[0]
+        target = Pose([0.4, 0.3, 0.3], DOWN)
+        res = planner.plan(q0, target, Mode.TRANSIT, released="nut", released_support="peg", timeout=5.0)
+        assert res.ok, res.message
+        assert "wrist touches nut, peg" in res.message
+        a, b = next((a, b) for name, a, b in res.segments if name == "retreat")
+        np.testing.assert_allclose(res.joint_path[a], q0, atol=1e-9)  # no self-motion first
+        rise = kin.fk(res.joint_path[b])[2, 3] - kin.fk(q0)[2, 3]
+        assert rise == pytest.approx(planner.retreat_distance, abs=2e-3)
+        assert not cm.in_collision(res.joint_path[b:]).any()
+        # the peg is not what was released, nor its support: refused; so is the paper profile
+        other = planner.plan(q0, target, Mode.TRANSIT, released="nut", timeout=2.0)
+        assert other.status is PlanStatus.START_IN_COLLISION
+        off = planner.plan(q0, target, Mode.TRANSIT, released="nut", released_support="peg", timeout=2.0, extras=False)
+        assert off.status is PlanStatus.START_IN_COLLISION and "extras off" in off.message
+        # point-cloud mode: the box only localises the peg's points, which the wrist may then touch
+        cm.set_boxes([top], as_obstacles=False)
+        assert cm.set_point_cloud(_box_points(top)) > 0
+        assert cm.in_collision(q0[None], allow=hand_only)[0]
+        assert not cm.in_collision(q0[None], allow=replace(hand_only, wrist=True))[0]
+        assert cm.in_collision(q0[None], allow=AllowedContacts(wrist=True))[0]  # nothing named: still a hit
+    finally:
+        cm.set_point_cloud(np.zeros((0, 3)))
         cm.set_boxes([])
 
 

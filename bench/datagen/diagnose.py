@@ -12,6 +12,9 @@ most of the outcome. This splits a cell's rate by the demo used, once with the r
         --noise 0.05 --seed 1000 --attempts 100 --touch obstacle
     .venv/bin/python bench/datagen/diagnose.py --task CoffeePreparation --variant D0 --method mimicgen \
         --noise 0.05 --seed 1000 --attempts 40 --stages   # the furthest stage each failed attempt reached
+    # A/B of the planner's wrist back-out on the same seeds (each entry counts the plans each start repair served)
+    .venv/bin/python bench/datagen/diagnose.py --task NutAssembly --variant D1 --profile skillgen_ros \
+        --noise 0.05 --seed 1000 --attempts 40 [--without-wrist-backout]
     # MimicGen with its subtask ends moved (an experiment, not the baseline): do the grasped objects drag?
     .venv/bin/python bench/datagen/diagnose.py --task ThreePieceAssembly --variant D0 --method mimicgen \
         --noise 0.05 --seed 1000 --attempts 40 --mimicgen-offsets 25 30
@@ -49,6 +52,29 @@ def _count_touches(env, body: str) -> list[int]:
         return obs
     env.step = counted
     return counter
+
+
+# the planner's start repairs (core/planning/planner.py notes them in PlanResult.message), by a phrase of each
+START_REPAIRS = {"hand_backout": "start: hand touches", "wrist_backout": "start: wrist touches",
+                 "null_space_escape": "start in collision: moved", "retreat_skipped": "retreat skipped",
+                 "retreat_shortened": "retreat shortened", "self_motion_retreat": "null space first"}
+
+
+def _count_start_repairs(env) -> Counter:
+    """Wrap env.planner.plan to count, over a run, the plans each start repair served and the plans
+    refused START_IN_COLLISION (what a repair's A/B compares on the same seeds)."""
+    seen: Counter = Counter()
+    plan = env.planner.plan
+
+    def counted(*args, **kwargs):
+        r = plan(*args, **kwargs)
+        seen["plans"] += 1
+        seen.update(k for k, phrase in START_REPAIRS.items() if phrase in r.message)
+        if r.status.name == "START_IN_COLLISION":
+            seen["START_IN_COLLISION"] += 1
+        return r
+    env.planner.plan = counted
+    return seen
 
 
 LIFTED, LID_OPENED = 0.05, 1.3   # m above its start; rad (the demos swing the lid to 1.55-1.8 rad)
@@ -179,6 +205,7 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
     at_skill: Counter = Counter()  # failure reason and the last skill whose initiation was planned
     reached: Counter = Counter()
     touching = _count_touches(env, touch) if touch else None
+    repairs = _count_start_repairs(env)
     touched = [0, 0]  # attempts touching `touch`, and how many of them succeeded
     drags: dict[str, list[float]] = defaultdict(list)
     at_limit: dict[str, list[int]] = defaultdict(lambda: [0, 0])  # joint -> attempts on its limit, successes
@@ -225,6 +252,7 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
                        for k, v in drags.items()}
     extra["attempts_dragging"], extra["successes_dragging"] = dragged
     extra["joint_at_limit_in_a_skill"] = {k: {"attempts": v[0], "successes": v[1]} for k, v in sorted(at_limit.items())}
+    extra["plans"] = {k: repairs[k] for k in ("plans", "START_IN_COLLISION", *START_REPAIRS)}
     if augment:
         extra["augment"] = True
     return {"task": task, "variant": variant, "method": method, "profile": profile, "seed": seed, "action_noise": noise,
@@ -251,7 +279,12 @@ def main(argv=None) -> int:
                     help="replace the task's MimicGen subtask_term_offset_range (an experiment)")
     ap.add_argument("--pod-mass", type=float, default=0.0, metavar="KG",
                     help="Coffee only: the pod's mass instead of coffee.POD_MASS (an experiment: MimicGen's is 0.007)")
+    ap.add_argument("--without-wrist-backout", action="store_true",
+                    help="A/B: the planner without its wrist back-out (start_repair.py, added 2026-12-05)")
     a = ap.parse_args(argv)
+    if a.without_wrist_backout:
+        from skillgen_ros.core.planning.start_repair import StartRepairs
+        StartRepairs._wrist_clears = staticmethod(lambda q0, allow, collides: False)
     if a.stages and a.task not in STAGES:
         ap.error(f"--stages knows the stages of {', '.join(STAGES)} only")
     if a.pod_mass:
@@ -269,17 +302,20 @@ def main(argv=None) -> int:
                         + (f" --pod-mass {a.pod_mass}" if a.pod_mass else ""))
         if a.pod_mass:
             e["pod_mass"] = a.pod_mass
+        e["wrist_backout"] = not a.without_wrist_backout
+        e["command"] += " --without-wrist-backout" if a.without_wrist_backout else ""
 
         def key(x):
             return (x["task"], x["variant"], x.get("method", "skillgen"), x["action_noise"], x["seed"], x["profile"],
-                    tuple(x.get("mimicgen_offsets", ())), x.get("augment", False), x.get("pod_mass", 0.0))
+                    tuple(x.get("mimicgen_offsets", ())), x.get("augment", False), x.get("pod_mass", 0.0),
+                    x.get("wrist_backout", True))
         out["entries"] = [x for x in out["entries"] if key(x) != key(e)] + [e]
         OUT.write_text(json.dumps(out, indent=1) + "\n")
         per = ", ".join(f"{k}: {v['successes']}/{v['attempts']}" for k, v in e["by_source_demo"].items())
         touch = f" | touching {a.touch}: {e['attempts_touching']} ({e['successes_touching']} succeeded)" if a.touch else ""
         touch += f" | stages {e['task_failed_stages']}" if a.stages else ""
         touch += f" | dragging (> {DRAGGED} m) {e['attempts_dragging']} ({e['successes_dragging']} succeeded)"
-        touch += f" | failed at {e['failures_at_skill']}"
+        touch += f" | failed at {e['failures_at_skill']} | plans {e['plans']}"
         touch += f" | joint on its limit in a skill (attempts, successes) {e['joint_at_limit_in_a_skill']}"
         print(f"{a.task} {a.variant} {a.method}{'+IA' if a.augment else ''} noise {noise}: {e['successes']}/{e['attempts']} | by demo {per}{touch}",
               flush=True)

@@ -24,6 +24,8 @@ Coffee's smoke (20 attempts a cell, paper profile, ground truth; about 11 min on
         --methods skillgen mimicgen --profiles paper --skip-extras --out bench/results/datagen_smoke_coffee.json
 One extra part again, updating the JSON in place (e.g. the graph overhead: 3 pairs of 50 attempts):
     .venv/bin/python bench/datagen/run.py --only graph_overhead
+    # every task's D0 through the ROS graph beside the same attempts in-process (estimated poses, 20 each)
+    .venv/bin/python bench/datagen/run.py --only graph_rates
 The D0 cells on other seeds, each into its own JSON (a check that a cell's gap to the paper is not noise):
     for s in 2000 3000 4000; do .venv/bin/python bench/datagen/run.py --workers 2 --seed $s --skip-extras \
         --tasks Square NutAssembly --variants D0 --methods skillgen --out bench/results/datagen_seed$s.json; done
@@ -69,9 +71,10 @@ def task_variants(task: str) -> list[str]:
 
 def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int, seed: int,
              perception: str, images: bool = False, velocity_scale: float | None = None,
-             profile: str = "skillgen_ros") -> dict:
+             profile: str = "skillgen_ros", keep_indices: bool = False) -> dict:
     """One (task, variant, method, profile) cell in this process; returns counts, CI, timings and the
-    initiation candidates used. velocity_scale None: SimEnvConfig's default (graphs.yaml's planner)."""
+    initiation candidates used (keep_indices: which attempt indices succeeded, too).
+    velocity_scale None: SimEnvConfig's default (graphs.yaml's planner)."""
     from skillgen_ros.core.dataset.paper import paper_rate
     from skillgen_ros.core.dataset.report import wilson_interval
     from skillgen_ros.core.generation.session import RunRequest, run_generation
@@ -103,28 +106,29 @@ def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int,
             "paper_rate": paper_rate(task, variant, method, augment),
             "failures": {k: v for k, v in run.failures.items() if v},
             "cpu_seconds": cpu, "wall_seconds": wall, "seconds_per_attempt": wall / run.attempts,
-            "successes_per_hour_per_core": run.successes / cpu * 3600 if cpu > 0 else 0.0}
+            "successes_per_hour_per_core": run.successes / cpu * 3600 if cpu > 0 else 0.0,
+            **({"successful_indices": sorted(r.index for r in run.results if r.success)} if keep_indices else {})}
 
 
-def _attempt_seconds(out_dir: str) -> list[float]:
-    """Per-attempt wall seconds as the run recorded them (attrs "timings" of every demo)."""
+def _attempt_records(out_dir: str) -> list[dict]:
+    """Every attempt's recorded attrs (success, reason, timings, ...) from a run's demo/failed files."""
     import h5py
 
-    secs = []
+    recs = []
     for name in ("demo.hdf5", "failed.hdf5"):
         path = os.path.join(out_dir, name)
         if not os.path.exists(path):
             continue
         with h5py.File(path, "r") as f:
             for d in f["data"].values():
-                t = d.attrs.get("timings")
-                if t is not None:
-                    secs.append(json.loads(t)["total"])
-    return secs
+                recs.append({k: (json.loads(v) if k == "timings" else v) for k, v in d.attrs.items()
+                             if k in ("success", "reason", "timings", "index")})
+    return recs
 
 
-def _graph_run(attempts: int, seed: int) -> dict:
-    """`skillgen generate` through the datagen graph; time per attempt from the attempts' own records."""
+def _graph_run(attempts: int, seed: int, task: str = "Square", variant: str = "D0") -> dict:
+    """`skillgen generate` through the datagen graph (estimated poses, the README's main job);
+    time per attempt and the outcomes from the attempts' own records."""
     import subprocess
 
     from skillgen_ros import rosenv
@@ -133,16 +137,36 @@ def _graph_run(attempts: int, seed: int) -> dict:
     env.setdefault("ROS_DOMAIN_ID", "77")
     with tempfile.TemporaryDirectory() as out:
         g = os.path.join(out, "g")
-        cmd = [str(ROOT / ".venv" / "bin" / "skillgen"), "generate", "--task", "Square", "--variant", "D0",
+        cmd = [str(ROOT / ".venv" / "bin" / "skillgen"), "generate", "--task", task, "--variant", variant,
                "--attempts", str(attempts), "--seed", str(seed), "--output", g, "--no-bag",
                "--video-attempts", "0"]  # as the in-process cell: no MP4
         t0 = time.perf_counter()
         p = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=ROOT, timeout=3600)
         wall = time.perf_counter() - t0
-        secs = _attempt_seconds(g)
-    ok = p.returncode == 0 and len(secs) == attempts
+        recs = _attempt_records(g)
+    secs = [r["timings"]["total"] for r in recs if "timings" in r]
+    ok = p.returncode == 0 and len(recs) == attempts
+    fails = Counter(str(r["reason"]) for r in recs if not r["success"])
     return {"ok": ok, "seconds_per_attempt": sum(secs) / len(secs) if secs else None, "wall_with_startup_s": wall,
+            "attempts": len(recs), "successes": sum(bool(r["success"]) for r in recs), "failures": dict(fails),
+            "successful_indices": sorted(int(r["index"]) for r in recs if r["success"]),
             "exit": p.returncode, "tail": (p.stdout[-600:] + p.stderr[-600:]) if not ok else p.stdout[-300:]}
+
+
+def graph_rates(attempts: int, seed: int) -> dict:
+    """Every task's D0 through the ROS graph (estimated poses, the default profile) beside the same
+    attempts in-process with estimated poses: the same (seed, index) should succeed on both paths."""
+    from skillgen_ros.core.tasks import TASK_NAMES
+
+    out = {"attempts": attempts, "seed": seed, "perception": "estimate", "variant": "D0", "tasks": {}}
+    for task in TASK_NAMES:
+        g = _graph_run(attempts, seed, task, "D0")
+        inproc = run_cell(task, "D0", "skillgen", False, attempts, seed, "estimate", keep_indices=True)
+        out["tasks"][task] = {"graph": g, "in_process": inproc,
+                              "same_outcomes": g["successful_indices"] == inproc.get("successful_indices")}
+        print(task, g["successes"], "/", g["attempts"], "graph;", inproc["successes"], "/", attempts, "in-process",
+              flush=True)
+    return out
 
 
 def graph_overhead(attempts: int, seed: int, repeats: int = 3) -> dict:
@@ -177,6 +201,7 @@ EXTRAS = {  # name -> (attempts, seed, perception) -> result; re-measured alone 
     "perception_ground_truth": lambda n, seed, perc: run_cell("Square", "D1", "skillgen", False, n, seed + 2,
                                                               "ground_truth"),
     "graph_overhead": lambda n, seed, perc: graph_overhead(max(3, n // 4), seed + 3),
+    "graph_rates": lambda n, seed, perc: graph_rates(max(3, n // 10), seed + 4),
 }
 
 
@@ -232,7 +257,7 @@ def main(argv=None) -> int:
                perception=a.perception, cells_wall_seconds=time.perf_counter() - t0, rerun=rerun)
     if not a.skip_extras:
         for k, f in EXTRAS.items():
-            if not (k == "graph_overhead" and a.skip_graph) and (a.force or k not in out):
+            if not (k in ("graph_overhead", "graph_rates") and a.skip_graph) and (a.force or k not in out):
                 out[k] = f(n, a.seed, a.perception)
                 _save(path, out)
     out["summary"] = summarize(out["cells"])

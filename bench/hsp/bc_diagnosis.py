@@ -21,6 +21,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+from bench.hsp.diagnosis import diagnose_rollouts  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
 REACHED, MOVED, LIFTED = 0.03, 0.02, 0.03  # m: EE within 3 cm of the nut; nut moved 2 cm; nut 3 cm up at the end
@@ -52,24 +53,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="evaluation seed (rollout_seed(seed, i), as bench/hsp/run.py)")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "hsp_bc_diagnosis.json"))
     a = ap.parse_args(argv)
-    import torch
-
-    from skillgen_ros.core.deploy.evaluate import make_env
-    from skillgen_ros.core.deploy.seeds import rollout_seed
-    from skillgen_ros.core.learning.checkpoint import load_hsp
-    from skillgen_ros.core.tasks import get_task
-
-    torch.set_num_threads(1)
-    policy = load_hsp(a.checkpoint, device="cpu")
-    spec = get_task(policy.config.task)
-    env = make_env("ground_truth", seed=a.seed)
-    rows = []
-    try:
-        for i in range(a.rollouts):
-            rows.append(rollout_row(env, policy, spec, rollout_seed(a.seed, i), a.variant))
-            print(rows[-1], flush=True)
-    finally:
-        env.close()
+    _, spec, rows = diagnose_rollouts(a.checkpoint, a.seed, a.rollouts,
+                                      lambda env, policy, spec: lambda seed: rollout_row(env, policy, spec, seed,
+                                                                                         a.variant))
     n = len(rows)
     summary = {"rollouts": n, "successes": sum(r["success"] for r in rows),
                f"reached_within_{REACHED}m": sum(r["ee_min_to_object_m"] < REACHED for r in rows),

@@ -53,9 +53,7 @@ def main(argv=None) -> int:
            **retrain(a.checkpoint, a.target, str(new), a.steps, a.seed)}
     t = time.time()
     s = evaluate(str(new), src.task, src.variant, "reg", a.rollouts, a.seed)
-    ev = evaluation_record(s, time.time() - t)
-    rec.update(evaluation={k: v for k, v in ev.items() if k != "eval_seconds"}, eval_seconds=ev["eval_seconds"],
-               command=rerun_command("bench/hsp/retrain_reg.py", argv))
+    rec.update(evaluation=evaluation_record(s, time.time() - t), command=rerun_command("bench/hsp/retrain_reg.py", argv))
     print(f"{src.task} {src.variant} HSP-Reg, I on {a.target} ({rec['steps']} steps, {rec['train_seconds']:.0f} s): "
           f"{s.line()}", flush=True)
     record(Path(a.out), f"{src.task}/{src.variant}/step{src.step}/{a.target}/seed{a.seed}", rec, machine_info())

@@ -37,6 +37,10 @@ Datasets and checkpoints live under --work (out/bench_hsp, not in git).
         --threads 1 --out bench/results/hsp_bc_part.json
     .venv/bin/python bench/hsp/run.py --cells Square/D0 --methods MimicGen-BC --budget-steps 13500 --chunk-steps 4500 \
         --threads 1 --merge-from bench/results/hsp_bc_part.json
+    # one cell's HSP part in a fresh 3 h session on 2 cores (out/ does not outlive a session): generation
+    # shards and each checkpoint's rollouts side by side; the data and the summaries are a single process's
+    .venv/bin/python bench/hsp/run.py --cells NutAssembly/D1 --methods HSP-TAMP HSP-Class HSP-Reg \
+        --budget-steps 13500 --chunk-steps 4500 --gen-workers 2 --eval-workers 2
     # after a fix in deployment: evaluate the kept checkpoints again (the training records stay)
     .venv/bin/python bench/hsp/run.py --cells Square/D1 --methods HSP-TAMP --reevaluate "TAMP goal fix"
     # smoke (seconds of training, 2 rollouts)
@@ -56,6 +60,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+from bench.hsp import shards  # noqa: E402
+from bench.hsp.evaluation import evaluate_modes  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
 CELLS = ("Square/D0", "Square/D1", "Square/D2", "Threading/D0", "Threading/D1", "NutAssembly/D0", "NutAssembly/D1")
@@ -87,7 +93,8 @@ class Store:
         else:
             self.data["machine"] = machine_info()
             self.data["protocol"] = {k: v for k, v in vars(args).items() if k not in ("cells", "methods", "reevaluate",
-                                                                                  "datasets_from")}
+                                                                                  "datasets_from", "gen_workers",
+                                                                                  "eval_workers")}
             from skillgen_ros.core.learning.observation import LOW_DIM_KEYS
             self.data["protocol"]["low_dim_keys"] = list(LOW_DIM_KEYS)  # what the networks read
         self.data.setdefault("cells", {})
@@ -119,12 +126,9 @@ def rerun_command(cell: str, a) -> str:
 
 
 def make_dataset(store: Store, cell: str, network: str, a) -> str:
-    """N successful demos in shards of attempts (resumable per shard), merged in attempt order."""
+    """N successful demos in shards of attempts (resumable per shard; --gen-workers side by side: shards.py),
+    merged in attempt order."""
     from skillgen_ros.core.dataset.hdf5 import merge_datasets
-    from skillgen_ros.core.generation.session import RunRequest, run_generation
-    from skillgen_ros.core.generation.sim_env import SimEnvConfig, SimGenerationEnv
-    from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
-    from skillgen_ros.core.tasks import get_task
 
     task, variant = cell.split("/")
     method, augment = ("skillgen", a.hsp_data == "ia") if network == "hsp" else ("mimicgen", False)
@@ -133,43 +137,17 @@ def make_dataset(store: Store, cell: str, network: str, a) -> str:
     merged = root / "demo.hdf5"
     if rec.get("path") and merged.exists():
         return str(merged)
-    spec = get_task(task)
-    demos = load_source_demos(expand_bag_paths([str(ROOT / "bags" / task)]), spec)
-    env = SimGenerationEnv(SimEnvConfig(perception="ground_truth", video=False, seed=a.seed))
 
-    def generate(out: Path, first: int, attempts: int, want: int):
-        shutil.rmtree(out, ignore_errors=True)  # an interrupted shard starts over
-        return run_generation(env, demos, spec, RunRequest(task=task, variant=variant, method=method, augment=augment,
-                                                           attempts=attempts, target_successes=want, seed=a.seed,
-                                                           first_index=first, output_dir=str(out), video_attempts=0),
-                              write_report=False, keep_timings=False)
-    try:
-        for sh in rec["shards"]:   # recorded by an earlier session whose out/ is gone: attempts depend only on
-            if sh["successes"] and not (Path(sh["dir"]) / "demo.hdf5").exists():   # (seed, index), so redo it
-                print(f"  {cell} {network}: {sh['dir']} is missing; regenerating its {sh['attempts']} attempts", flush=True)
-                r = generate(Path(sh["dir"]), sh["first_index"], sh["attempts"], sh["successes"])
-                if (r.attempts, r.successes) != (sh["attempts"], sh["successes"]):
-                    raise SystemExit(f"{sh['dir']}: regenerated {r.successes}/{r.attempts}, recorded "
-                                     f"{sh['successes']}/{sh['attempts']}; delete the cell's dataset record to start over")
-        while sum(s["successes"] for s in rec["shards"]) < a.demos:
-            k = len(rec["shards"])
-            first = sum(s["attempts"] for s in rec["shards"])
-            out = root / f"shard_{k:03d}"
-            want = min(a.shard, a.demos - sum(s["successes"] for s in rec["shards"]))
-            t = time.time()
-            r = generate(out, first, want * a.max_attempts_factor, want)
-            rec["shards"].append({"dir": str(out), "first_index": first, "attempts": r.attempts,
-                                  "successes": r.successes, "seconds": time.time() - t})
-            store.save()
-            if r.successes == 0:
-                raise SystemExit(f"{cell} {method}: no successes in {r.attempts} attempts; giving up")
-    finally:
-        env.close()
+    def job_of(first: int, attempts: int, want: int, out: str) -> shards.ShardJob:
+        return shards.ShardJob(task, variant, method, augment, a.seed, first, attempts, want, out)
+
+    files = shards.generate(rec["shards"], root, job_of, a.demos, a.shard, a.gen_workers, a.max_attempts_factor,
+                            store.save)
     merged.unlink(missing_ok=True)
-    merge_datasets([str(Path(s["dir"]) / "demo.hdf5") for s in rec["shards"] if s["successes"]], str(merged))
+    merge_datasets(files, str(merged), keep=shards.first_n_keep(files, a.demos))
     att = sum(s["attempts"] for s in rec["shards"])
-    ok = sum(s["successes"] for s in rec["shards"])
-    rec.update(path=str(merged), demos=ok, attempts=att, generation_rate=ok / att if att else 0.0)
+    ok = sum(s["successes"] for s in rec["shards"])  # a parallel batch may overshoot: the merge keeps a.demos
+    rec.update(path=str(merged), demos=min(ok, a.demos), attempts=att, generation_rate=ok / att if att else 0.0)
     store.save()
     return str(merged)
 
@@ -190,10 +168,17 @@ def evaluate_methods(store: Store, cell: str, network: str, ckpt: Path, step: in
     task, variant = cell.split("/")
     c = store.cell(cell)
     policy = load_hsp(str(ckpt), device=a.device, expect_task=task)  # pi shared by the HSP methods
+    done, t0 = {}, time.time()
+    if a.eval_workers > 1:  # every method's rollouts side by side (evaluation.py); the same summaries
+        done = evaluate_modes(str(ckpt), task, variant, [MODE[m] for m in methods], a.rollouts, a.seed, a.device,
+                              a.eval_workers)
     for m in methods:
         t = time.time()
-        s = evaluate(str(ckpt), task, variant, MODE[m], a.rollouts, a.seed, device=a.device, policy=policy)
-        rec = {**s.to_json(), "step": step, "eval_seconds": time.time() - t}
+        s = done.get(MODE[m]) or evaluate(str(ckpt), task, variant, MODE[m], a.rollouts, a.seed, device=a.device,
+                                          policy=policy)
+        rec = {**s.to_json(), "step": step, "eval_seconds": time.time() - (t0 if done else t)}
+        if done:
+            rec["eval_workers"] = a.eval_workers  # eval_seconds: the methods' shared wall time
         rec.pop("reset_seeds", None)
         mrec = c["methods"].setdefault(m, {"evals": [], "paper": PAPER.get(cell, {}).get(m)})
         mrec["evals"].append(rec)
@@ -372,6 +357,10 @@ def main(argv=None) -> int:
     p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default; 1 when two runs share 2 cores)")
     p.add_argument("--shard", type=int, default=100, help="demos per generation shard (the resume granularity)")
     p.add_argument("--max-attempts-factor", type=int, default=5)
+    p.add_argument("--eval-workers", type=int, default=1,
+                   help="evaluation rollouts side by side (processes); the same summaries (bench/hsp/evaluation.py)")
+    p.add_argument("--gen-workers", type=int, default=1,
+                   help="generation shards side by side (processes); the dataset is the same (bench/hsp/shards.py)")
     p.add_argument("--work", default="out/bench_hsp", help="datasets and checkpoints (not in git)")
     p.add_argument("--out", default=str(ROOT / "bench" / "results" / "hsp.json"))
     p.add_argument("--datasets-from", metavar="JSON", default="",

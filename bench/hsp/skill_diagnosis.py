@@ -28,6 +28,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+from bench.hsp.diagnosis import diagnose_rollouts  # noqa: E402
 from bench.hsp.retrain import record  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
@@ -63,10 +64,10 @@ class SkillTracer:
             return o
         poses, ee = true_object_poses(self.env), np.asarray(o.ee_pose[:3], float)
         held = s.attached_object if s.mode == "transfer" and s.attached_object else s.object_id
-        c = suite._world(poses[held], self.spec.object(held).keypoint("body_origin"))
+        c = suite.keypoint_world(self.spec.object(held), poses[held], "body_origin")
         row = (float(np.linalg.norm(ee - c)), float(g), float(np.sum(o.gripper)))
         if s.mode == "transfer" and "peg" in self.spec.object(s.object_id).type:
-            p = suite._world(poses[s.object_id], self.spec.object(s.object_id).keypoint("body_origin"))
+            p = suite.keypoint_world(self.spec.object(s.object_id), poses[s.object_id], "body_origin")
             row += (float(np.max(np.abs(c[:2] - p[:2]))), float(c[2] - suite.TABLE_Z))
         self.trace.setdefault(self.skill, []).append(row)
         return o
@@ -108,32 +109,26 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="evaluation seed (rollout_seed(seed, i), as bench/hsp/run.py)")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "hsp_skill_diagnosis.json"))
     a = ap.parse_args(argv)
-    import torch
-
-    from skillgen_ros.core.deploy.evaluate import make_env
     from skillgen_ros.core.deploy.loading import load_demos
     from skillgen_ros.core.deploy.rollout import DeployConfig, run_rollout
-    from skillgen_ros.core.deploy.seeds import rollout_seed
-    from skillgen_ros.core.learning.checkpoint import load_hsp
-    from skillgen_ros.core.tasks import get_task
 
-    torch.set_num_threads(1)
-    policy = load_hsp(a.checkpoint, device="cpu")
-    spec, variant = get_task(policy.config.task), a.variant or policy.config.variant
-    demos = load_demos(spec.name) if a.mode in ("class", "tamp") else []
-    env = make_env("ground_truth", seed=a.seed)
-    tracer, rows = SkillTracer(env, spec), []
-    try:
-        for i in range(a.rollouts):
+    variant = a.variant
+
+    def make_row(env, policy, spec):
+        nonlocal variant
+        variant = variant or policy.config.variant
+        demos = load_demos(spec.name) if a.mode in ("class", "tamp") else []
+        tracer = SkillTracer(env, spec)
+
+        def row(seed: int) -> dict:
             tracer.trace.clear()
-            seed = rollout_seed(a.seed, i)
             r = run_rollout(env, policy, spec, seed, variant, DeployConfig(mode=a.mode), demos,
                             on_progress=tracer.progress)
-            rows.append({"reset_seed": seed, "success": r.success, "reason": r.reason.value, "message": r.message,
-                         "skills": skill_rows(tracer, r)})
-            print(rows[-1], flush=True)
-    finally:
-        env.close()
+            return {"reset_seed": seed, "success": r.success, "reason": r.reason.value, "message": r.message,
+                    "skills": skill_rows(tracer, r)}
+        return row
+
+    _, spec, rows = diagnose_rollouts(a.checkpoint, a.seed, a.rollouts, make_row)
     rec = {"checkpoint": a.checkpoint, "mode": a.mode, "variant": variant, "summary": summarize(rows), "rows": rows,
            "command": shlex.join([".venv/bin/python", "bench/hsp/skill_diagnosis.py", *(argv or sys.argv[1:])])}
     record(Path(a.out), f"{spec.name}/{variant}/{Path(a.checkpoint).stem}/{a.mode}/seed{a.seed}", rec, machine_info())

@@ -29,6 +29,7 @@ from .occlusion import REFINE, DepthView, hidden_space
 
 SPHERES_FILE = Path(__file__).with_name("panda_spheres.yaml")
 HAND = LINKS.index(HAND_LINK)
+WRIST = LINKS.index("panda_link7")  # the link above the hand: beside a peg's top after a low place
 ATTACHED = len(LINKS)  # group id of attached-object spheres
 FILL_XY_DIV = 2  # heightmap columns are voxel / FILL_XY_DIV wide (points every voxel up them)
 HIDDEN_REFINE = REFINE  # hidden cells left after certification are halved and certified again this often
@@ -89,10 +90,13 @@ class AllowedContacts:
     """Contacts tolerated in retreat/approach: hand <-> `hand_object`, attached <-> `support`.
 
     hand_object may name several boxes (a tuple), e.g. a nut just released onto a peg and the peg:
-    the paper ignores hand/object and object/environment contacts in these short phases."""
+    the paper ignores hand/object and object/environment contacts in these short phases.
+    wrist: panda_link7 may touch them too (a start repair, planner.py: a nut pushed down its peg
+    leaves the wrist beside the peg's top, inside the spheres' padding)."""
 
     hand_object: str | tuple[str, ...] | None = None
     support: str | None = None
+    wrist: bool = False
 
     def hand_names(self) -> tuple[str, ...]:
         h = self.hand_object
@@ -283,11 +287,12 @@ class CollisionModel:
         inv = np.stack([invert(b.pose) for b in boxes]) if B else np.zeros((0, 4, 4))
         half = np.stack([b.half_extents for b in boxes]) if B else np.zeros((0, 3))
         skip = np.zeros((len(rad), B), np.bool_)
+        hand = (group == HAND) | ((group == WRIST) & allow.wrist)
         for j, b in enumerate(boxes):
             if attached is not None and b.name == attached.name:
                 skip[:, j] = True  # the held object is not an obstacle
             if b.name in allow.hand_names():
-                skip[group == HAND, j] = True
+                skip[hand, j] = True
                 skip[group == ATTACHED, j] = True
             if allow.support is not None and b.name == allow.support:
                 skip[group == ATTACHED, j] = True
@@ -332,7 +337,8 @@ class CollisionModel:
         n = C.shape[0]
         hit = np.zeros(n, bool)
         support = allow.support if allow.support != "table" else None
-        sets = ((group < HAND, None), (group == HAND, allow.hand_object),
+        wrist = (group == WRIST) & allow.wrist
+        sets = (((group < HAND) & ~wrist, None), ((group == HAND) | wrist, allow.hand_object),
                 (group == ATTACHED, support))
         for mask, skip_box in sets:
             if not np.any(mask):

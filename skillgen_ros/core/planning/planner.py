@@ -234,6 +234,10 @@ class MotionPlanner(StartRepairs):
             c.notes.append(f"start: hand touches {', '.join(touching)} (allowed on the retreat)")
             return q0, q0[None], touching
         escape = self._null_space_escape(q0, lambda q: bool(c.collides(q[None], c.allow_start)[0]))
+        if escape is None and self._wrist_clears(q0, c.allow_start, c.collides):
+            c.allow_start = replace(c.allow_start, wrist=True)
+            c.notes.append(f"start: wrist touches {', '.join(c.allow_start.hand_names())} (allowed on the retreat)")
+            return q0, q0[None], True
         if escape is None:
             raise _PlanFailure(PlanStatus.START_IN_COLLISION, "start configuration collides")
         c.notes.append(f"start in collision: moved {np.abs(escape[-1] - q0).max():.2f} rad in the null space")

@@ -3,6 +3,8 @@ a plan starts in contact or in collision, as a replayed skill often leaves the a
 
 - a hand against a fixture backs out along its retreat (doubled to 10 cm if still touching);
 - an arm grazing an obstacle escapes along its null space (hand and held object stay put);
+- where none escapes and the wrist alone is at the released object or its support, the wrist may
+  touch them on the retreat as the hand may;
 - a retreat IK cannot follow is shortened to where it holds, or preceded by a self-motion.
 
 A mixin of MotionPlanner (planner.py): it uses the planner's kin, ik, cm and retreat_distance.
@@ -25,6 +27,15 @@ class StartRepairs:
             return ()
         return tuple(n for n in names
                      if collides(q0[None], replace(allow, hand_object=allow.hand_names() + tuple(m for m in names if m != n)))[0])
+
+    @staticmethod
+    def _wrist_clears(q0, allow, collides) -> bool:
+        """Whether letting the wrist (panda_link7) touch what the hand may touch -- the object just
+        released and what it rests on -- clears the start. A nut pushed down its peg with the hand
+        closed leaves the wrist beside the peg's top, inside the spheres' padding, where no
+        self-motion gets it out (bench/results/hsp_skill_diagnosis.json, docs/hsp.md); the
+        retreat lifts it away along the hand's axis."""
+        return bool(allow.hand_names()) and not collides(q0[None], replace(allow, wrist=True))[0]
 
     def _null_space_escape(self, q0, blocked, step: float = 0.02, reach: float = 0.5) -> np.ndarray | None:
         """A start in collision (the elbow grazing an obstacle after a replayed skill, inside the

@@ -53,11 +53,16 @@ def _world(pose: Pose, local) -> np.ndarray:
     return pose.rotation.apply(np.asarray(local, float)) + pose.position
 
 
+def keypoint_world(obj: ObjectSpec, pose: Pose, name: str) -> np.ndarray:
+    """`obj`'s keypoint `name` in the world with the object at `pose`: the point the success rules read."""
+    return _world(pose, obj.keypoint(name))
+
+
 def on_peg(nut: ObjectSpec, peg: ObjectSpec, poses) -> bool:
     """robosuite NutAssembly.on_peg: nut body within 3 cm of the peg body in world x and y, and
     below the table top + 5 cm (so at least 8 cm down the 13 cm peg)."""
-    c = _world(poses[nut.id], nut.keypoint("body_origin"))
-    p = _world(poses[peg.id], peg.keypoint("body_origin"))
+    c = keypoint_world(nut, poses[nut.id], "body_origin")
+    p = keypoint_world(peg, poses[peg.id], "body_origin")
     return bool(abs(c[0] - p[0]) < ON_PEG_XY and abs(c[1] - p[1]) < ON_PEG_XY and c[2] < TABLE_Z + ON_PEG_Z)
 
 

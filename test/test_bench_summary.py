@@ -56,3 +56,40 @@ def test_diagnose_counts_the_plans_each_start_repair_served():
         env.planner.plan(None, None)
     assert seen["plans"] == 4 and seen["START_IN_COLLISION"] == 1
     assert seen["wrist_backout"] == 1 and seen["null_space_escape"] == 1 and seen["hand_backout"] == 0
+
+
+def test_diagnose_splits_the_first_look_at_each_skills_object_by_outcome():
+    from types import SimpleNamespace
+
+    from bench.datagen import diagnose
+
+    skills = [SimpleNamespace(index=0, object_id="nut"), SimpleNamespace(index=1, object_id="peg")]
+    rows = [(True, [(0, {"nut": (2.0, 1.0), "peg": (9.0, 9.0)}), (0, {"nut": (7.0, 7.0)}), (1, {"peg": (1.0, 0.5)})]),
+            (True, [(0, {"nut": (4.0, 3.0)}), (1, {"peg": (0.5, 0.1)})]),
+            (False, [(0, {"nut": (30.0, 45.0)})])]
+    s = diagnose._look_summary(rows, skills)
+    assert s["succeeded"]["skill 0 nut"] == {"attempts": 2, "trans_mm_median": 3.0, "trans_mm_max": 4.0,
+                                             "rot_deg_median": 2.0, "rot_deg_max": 3.0}  # first looks: (2, 1), (4, 3)
+    assert s["succeeded"]["skill 1 peg"]["trans_mm_max"] == 1.0  # the skill-0 look at the peg is not its own
+    assert s["failed"] == {"skill 0 nut": {"attempts": 1, "trans_mm_median": 30.0, "trans_mm_max": 30.0,
+                                           "rot_deg_median": 45.0, "rot_deg_max": 45.0}}
+
+
+def test_diagnose_records_each_looks_errors_for_its_skill_without_the_held_object():
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from bench.datagen import diagnose
+    from skillgen_ros.core.geometry import Pose
+
+    turned = Pose([0.5, 0.01, 0.9], [0.0, 0.0, np.sin(np.radians(45) / 2), np.cos(np.radians(45) / 2)])
+    truth = {"nut": Pose([0.5, 0.0, 0.9], [0, 0, 0, 1]), "peg": Pose([0.2, 0.0, 0.9], [0, 0, 0, 1])}
+    env = SimpleNamespace(world=SimpleNamespace(object_poses=lambda: truth), next_skill=2,
+                          grasps=SimpleNamespace(holding=lambda: "peg"), model_symmetry=lambda k: "none",
+                          estimate_poses=lambda: {"nut": turned, "peg": Pose([0.0, 0.0, 0.9], [0, 0, 0, 1])})
+    looks = diagnose._record_look_errors(env)
+    env.estimate_poses()
+    ((skill, errs),) = looks
+    assert skill == 2 and set(errs) == {"nut"}  # the held peg's belief is not a look at it
+    assert errs["nut"] == pytest.approx((10.0, 45.0))

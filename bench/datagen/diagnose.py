@@ -77,6 +77,49 @@ def _count_start_repairs(env) -> Counter:
     return seen
 
 
+def _record_look_errors(env) -> list[tuple[int, dict]]:
+    """Wrap env.estimate_poses (perception "estimate"): per look, the skill it is for and each estimated
+    object's translation (mm) and symmetry-aware rotation (deg) error against the sim's true pose, the
+    held object left out (its belief is not looked at). The caller clears the list before each attempt;
+    each entry is (skill index, {object id: (mm, deg)})."""
+    from skillgen_ros.core.perception.metrics import rotation_error
+
+    looks: list[tuple[int, dict]] = []
+    estimate = env.estimate_poses
+
+    def recorded():
+        est, truth, held = estimate(), env.world.object_poses(), env.grasps.holding()
+        looks.append((env.next_skill, {
+            k: (1000 * float(np.linalg.norm(v.position - truth[k].position)),
+                float(np.degrees(rotation_error(v.rotation.as_matrix(), truth[k].rotation.as_matrix(),
+                                                env.model_symmetry(k)))))
+            for k, v in est.items() if k in truth and k != held}))
+        return est
+    env.estimate_poses = recorded
+    return looks
+
+
+def _look_summary(rows: list[tuple[bool, list[tuple[int, dict]]]], skills) -> dict:
+    """For each skill, the object it acts on as the first look for that skill saw it: median and max
+    error over attempts, split by outcome (an error seen before the skill can cause its failure; one
+    seen after a failure, e.g. of a nut knocked over, cannot)."""
+    out = {}
+    for ok in (True, False):
+        errs: dict[str, list[tuple[float, float]]] = defaultdict(list)
+        for success, looks in rows:
+            if success != ok:
+                continue
+            for sk in skills:
+                first = next((e for i, e in looks if i == sk.index), None)
+                if first is not None and sk.object_id in first:
+                    errs[f"skill {sk.index} {sk.object_id}"].append(first[sk.object_id])
+        out["succeeded" if ok else "failed"] = {
+            k: {"attempts": len(v), "trans_mm_median": float(np.median([a for a, _ in v])),
+                "trans_mm_max": float(max(a for a, _ in v)), "rot_deg_median": float(np.median([b for _, b in v])),
+                "rot_deg_max": float(max(b for _, b in v))} for k, v in sorted(errs.items())}
+    return out
+
+
 LIFTED, LID_OPENED = 0.05, 1.3   # m above its start; rad (the demos swing the lid to 1.55-1.8 rad)
 
 
@@ -177,7 +220,8 @@ def _joints_at_limit(ep) -> list[int]:
 
 def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, profile: str,
              method: str = "skillgen", touch: str = "", stages: bool = False,
-             mimicgen_offsets: tuple[int, int] | None = None, augment: bool = False) -> dict:
+             mimicgen_offsets: tuple[int, int] | None = None, augment: bool = False,
+             perception: str = "ground_truth") -> dict:
     """One cell's attempts, grouped by the source demo of the last skill (the insertion's); with
     `touch`, also how many attempts pushed the robot against that body, and how many of those
     still succeeded (pybullet lets the arm shove past a fixed obstacle and keep its grasp). With
@@ -199,13 +243,15 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
     demos = load_source_demos(expand_bag_paths([str(ROOT / "bags" / task)]), spec)
     cfg = RunRequest(task=task, variant=variant, method=method, attempts=attempts, seed=seed, profile=profile,
                      action_noise=noise, augment=augment, output_dir="/nonexistent").config()
-    env = SimGenerationEnv(SimEnvConfig(perception="ground_truth", seed=seed, video=False))
+    env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, video=False))
     by_demo: dict[int, list[int]] = defaultdict(lambda: [0, 0])
     reasons: Counter = Counter()
     at_skill: Counter = Counter()  # failure reason and the last skill whose initiation was planned
     reached: Counter = Counter()
     touching = _count_touches(env, touch) if touch else None
     repairs = _count_start_repairs(env)
+    looks = _record_look_errors(env) if perception == "estimate" else None
+    look_rows: list[tuple[bool, list]] = []
     touched = [0, 0]  # attempts touching `touch`, and how many of them succeeded
     drags: dict[str, list[float]] = defaultdict(list)
     at_limit: dict[str, list[int]] = defaultdict(lambda: [0, 0])  # joint -> attempts on its limit, successes
@@ -215,7 +261,10 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
         for i in range(attempts):
             if touching:
                 touching[0] = 0
+            if looks is not None:
+                looks.clear()
             r = run_attempt(env, demos, spec, method, i, seed, cfg)
+            look_rows.append((bool(r.success), list(looks) if looks is not None else []))
             if touching and touching[0] > 0:
                 touched[0] += 1
                 touched[1] += int(r.success)
@@ -253,6 +302,10 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
     extra["attempts_dragging"], extra["successes_dragging"] = dragged
     extra["joint_at_limit_in_a_skill"] = {k: {"attempts": v[0], "successes": v[1]} for k, v in sorted(at_limit.items())}
     extra["plans"] = {k: repairs[k] for k in ("plans", "START_IN_COLLISION", *START_REPAIRS)}
+    if looks is not None:
+        extra["perception"] = perception
+        extra["look_errors"] = _look_summary(look_rows, spec.skills)
+    extra["successful_indices"] = [i for i, (ok, _) in enumerate(look_rows) if ok]
     if augment:
         extra["augment"] = True
     return {"task": task, "variant": variant, "method": method, "profile": profile, "seed": seed, "action_noise": noise,
@@ -279,6 +332,8 @@ def main(argv=None) -> int:
                     help="replace the task's MimicGen subtask_term_offset_range (an experiment)")
     ap.add_argument("--pod-mass", type=float, default=0.0, metavar="KG",
                     help="Coffee only: the pod's mass instead of coffee.POD_MASS (an experiment: MimicGen's is 0.007)")
+    ap.add_argument("--perception", default="ground_truth", choices=["ground_truth", "estimate"],
+                    help="estimate: also each look's pose errors against the sim's truth, by outcome")
     ap.add_argument("--without-wrist-backout", action="store_true",
                     help="A/B: the planner without its wrist back-out (start_repair.py, added 2026-12-05)")
     a = ap.parse_args(argv)
@@ -293,7 +348,7 @@ def main(argv=None) -> int:
     out["machine"] = machine_info()
     for noise in a.noise:
         e = diagnose(a.task, a.variant, a.attempts, noise, a.seed, a.profile, a.method, a.touch, a.stages,
-                     tuple(a.mimicgen_offsets) if a.mimicgen_offsets else None, a.augment)
+                     tuple(a.mimicgen_offsets) if a.mimicgen_offsets else None, a.augment, a.perception)
         e["command"] = (f".venv/bin/python bench/datagen/diagnose.py --task {a.task} --variant {a.variant} "
                         f"--attempts {a.attempts} --noise {noise} --seed {a.seed} --profile {a.profile} "
                         f"--method {a.method}" + (f" --touch {a.touch}" if a.touch else "")
@@ -304,11 +359,12 @@ def main(argv=None) -> int:
             e["pod_mass"] = a.pod_mass
         e["wrist_backout"] = not a.without_wrist_backout
         e["command"] += " --without-wrist-backout" if a.without_wrist_backout else ""
+        e["command"] += f" --perception {a.perception}" if a.perception != "ground_truth" else ""
 
         def key(x):
             return (x["task"], x["variant"], x.get("method", "skillgen"), x["action_noise"], x["seed"], x["profile"],
                     tuple(x.get("mimicgen_offsets", ())), x.get("augment", False), x.get("pod_mass", 0.0),
-                    x.get("wrist_backout", True))
+                    x.get("wrist_backout", True), x.get("perception", "ground_truth"))
         out["entries"] = [x for x in out["entries"] if key(x) != key(e)] + [e]
         OUT.write_text(json.dumps(out, indent=1) + "\n")
         per = ", ".join(f"{k}: {v['successes']}/{v['attempts']}" for k, v in e["by_source_demo"].items())

@@ -310,6 +310,16 @@ class SimGenerationEnv:
         """The attempt's next skill: which objects its pose estimate requires (TaskSpec.hidden_until)."""
         self._next_skill = int(skill_index)
 
+    @property
+    def next_skill(self) -> int:
+        """The skill the next pose estimate is for (diagnostics attribute each look to it)."""
+        return self._next_skill
+
+    def model_symmetry(self, object_id: str):
+        """The symmetry perception assumes for `object_id` (none before its first estimate or unknown)."""
+        m = (self._models or {}).get(object_id)
+        return m.symmetry if m is not None else "none"
+
     def close(self) -> None:
         self.world.close()
 

@@ -167,11 +167,12 @@ def evaluate_methods(store: Store, cell: str, network: str, ckpt: Path, step: in
 
     task, variant = cell.split("/")
     c = store.cell(cell)
-    policy = load_hsp(str(ckpt), device=a.device, expect_task=task)  # pi shared by the HSP methods
-    done, t0 = {}, time.time()
+    done, t0, policy = {}, time.time(), None
     if a.eval_workers > 1:  # every method's rollouts side by side (evaluation.py); the same summaries
         done = evaluate_modes(str(ckpt), task, variant, [MODE[m] for m in methods], a.rollouts, a.seed, a.device,
                               a.eval_workers)
+    else:
+        policy = load_hsp(str(ckpt), device=a.device, expect_task=task)  # pi shared by the HSP methods
     for m in methods:
         t = time.time()
         s = done.get(MODE[m]) or evaluate(str(ckpt), task, variant, MODE[m], a.rollouts, a.seed, device=a.device,

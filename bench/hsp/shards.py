@@ -92,8 +92,7 @@ def next_batch(shards: list[dict], demos: int, shard: int, workers: int, cap_fac
     want = min(shard, need)
     if workers <= 1:
         return [(first, want * cap_factor, want)]
-    tried = sum(s["attempts"] for s in shards)
-    rate = done / tried if done else PRIOR_RATE
+    rate = done / first if done else PRIOR_RATE  # first = the attempts so far
     size = max(1, math.ceil(want / max(rate, 1e-3)))
     count = min(workers, math.ceil(need / max(1, size * rate)))
     return [(first + k * size, size, 0) for k in range(max(1, count))]

@@ -1,5 +1,5 @@
 """What an attempt believes about fixtures (Coffee Prep's drawer and machine): the hand closing on a link does not
-carry the fixture, a fixture keeps its first estimate, a held object's start support can be a fixture's part,
+carry the fixture, a fixture keeps its most confident estimate from before its first skill, a held object's start support can be a fixture's part,
 and a look that misses every required object still passes when each was seen before; one that failed as a
 whole (no table, an empty cloud) does not. Both envs (in-process and graph) follow the same rules."""
 from __future__ import annotations
@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skillgen_ros.core.generation.grasp import carriable, new_beliefs
+from skillgen_ros.core.generation.grasp import FixtureBeliefs, carriable
+from skillgen_ros.core.tasks import get_task
 from skillgen_ros.core.planning.articulated import support_below
 from skillgen_ros.core.planning.collision import Box
 
@@ -20,13 +21,24 @@ def test_a_fixtures_link_does_not_carry_the_fixture():
     assert carriable("Square", None) is None and carriable("Square", "") is None
 
 
-def test_a_fixture_keeps_its_first_estimate():
-    first, later = np.eye(4), np.eye(4) + 1
-    believed = {"drawer": first, "mug": first}
-    seen = {"drawer": later, "mug": later, "coffee_machine": later}
-    got = new_beliefs(seen, believed, {"drawer", "coffee_machine"})
-    assert set(got) == {"mug", "coffee_machine"}        # the drawer keeps `first`; a fixture seen first is taken
-    assert new_beliefs(seen, {}, {"drawer"}) == seen
+def test_a_fixture_keeps_its_most_confident_estimate_until_its_first_skill():
+    """Coffee Prep: the drawer's first skill is 2 (open_drawer), the machine's 1. Looks before skill 0, 1 and 2
+    see the drawer shut: the most confident of them wins (a flipped drawer scores lower); from skill 3 on the
+    drawer is open and its belief frozen, however confident a look is. Movable objects always take the look."""
+    beliefs = FixtureBeliefs(get_task("CoffeePreparation"))
+    assert beliefs.first_skill == {"drawer": 2, "coffee_machine": 1}
+    flipped, right, opened = np.eye(4), np.eye(4) + 1, np.eye(4) + 2
+    believed = {}
+    believed.update(beliefs.update({"drawer": flipped, "mug": flipped}, {"drawer": 0.5, "mug": 0.9}, believed, 0))
+    assert believed["drawer"] is flipped                                    # the first look is taken as it is
+    got = beliefs.update({"drawer": right, "mug": right}, {"drawer": 0.6, "mug": 0.1}, believed, 1)
+    assert got["drawer"] is right and got["mug"] is right                  # more confident; the mug always
+    believed.update(got)
+    assert "drawer" not in beliefs.update({"drawer": flipped}, {"drawer": 0.55}, believed, 2)   # less confident
+    assert "drawer" not in beliefs.update({"drawer": opened}, {"drawer": 0.99}, believed, 3)    # after its skill
+    assert "coffee_machine" not in beliefs.update({"coffee_machine": opened}, {"coffee_machine": 0.99},
+                                                  {"coffee_machine": right}, 2)
+    assert beliefs.update({"coffee_machine": right}, {}, {}, 4) == {"coffee_machine": right}  # first seen: taken
 
 
 def test_the_support_below_a_held_object_is_the_highest_top_under_it():

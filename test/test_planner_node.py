@@ -257,3 +257,27 @@ def test_the_lid_is_an_obstacle_at_the_driver_joint_value(client):
     assert plans_to(open_lid, scene, opened, PlanToPose.Response.GOAL_IN_COLLISION)
     assert plans_to(open_lid, scene, 0.0, PlanToPose.Response.SUCCESS)
     assert planner.proc.poll() is None
+
+
+def test_a_task_object_is_an_obstacle_by_its_parts(client):
+    """A SceneObject whose type and half extents are a task's object (PickPlace's bin) blocks by its parts, as
+    generation in-process plans (object_boxes): the hand reaches down between the bin's walls. The same type with
+    other half extents is not that object: its box is the obstacle, and the same goal lies inside it."""
+    from skillgen_ros.core.robot import TABLE_Z
+    from skillgen_ros.core.tasks import get_task
+
+    node, planner = client
+    cli = node.create_client(PlanToPose, "plan_to_pose")
+    assert cli.wait_for_service(timeout_sec=90.0)
+    b = get_task("PickPlace").object("bin")
+    centre = (0.5, 0.0, TABLE_Z + b.half_extents[2])
+    inside = (0.5, 0.0, TABLE_Z + 0.045)         # 3.5 cm over the bin's floor, 1.5 cm below its walls' tops
+    known = _cube("bin", centre, b.half_extents)
+    known.type = b.type
+    other = _cube("bin", centre, np.asarray(b.half_extents) + [0.0, 0.0, 0.001])
+    other.type = b.type
+    scene = PlanToPose.Request.SOURCE_SCENE
+    assert _call(cli, _request(inside, collision_source=scene, objects=[known])).status == PlanToPose.Response.SUCCESS
+    assert (_call(cli, _request(inside, collision_source=scene, objects=[other])).status
+            == PlanToPose.Response.GOAL_IN_COLLISION)
+    assert planner.proc.poll() is None

@@ -26,6 +26,8 @@ One extra part again, updating the JSON in place (e.g. the graph overhead: 3 pai
     .venv/bin/python bench/datagen/run.py --only graph_overhead
     # every task's D0 through the ROS graph beside the same attempts in-process (estimated poses, 20 each)
     .venv/bin/python bench/datagen/run.py --only graph_rates
+    # some tasks again, the others' entries kept (each task records its own rerun command and date)
+    .venv/bin/python bench/datagen/run.py --only graph_rates --tasks CoffeePreparation
 The D0 cells on other seeds, each into its own JSON (a check that a cell's gap to the paper is not noise):
     for s in 2000 3000 4000; do .venv/bin/python bench/datagen/run.py --workers 2 --seed $s --skip-extras \
         --tasks Square NutAssembly --variants D0 --methods skillgen --out bench/results/datagen_seed$s.json; done
@@ -153,13 +155,13 @@ def _graph_run(attempts: int, seed: int, task: str = "Square", variant: str = "D
             "exit": p.returncode, "tail": (p.stdout[-600:] + p.stderr[-600:]) if not ok else p.stdout[-300:]}
 
 
-def graph_rates(attempts: int, seed: int) -> dict:
-    """Every task's D0 through the ROS graph (estimated poses, the default profile) beside the same
-    attempts in-process with estimated poses: the same (seed, index) should succeed on both paths."""
+def graph_rates(attempts: int, seed: int, tasks=None) -> dict:
+    """Every task's D0 (or `tasks`') through the ROS graph (estimated poses, the default profile) beside the
+    same attempts in-process with estimated poses: the same (seed, index) should succeed on both paths."""
     from skillgen_ros.core.tasks import TASK_NAMES
 
     out = {"attempts": attempts, "seed": seed, "perception": "estimate", "variant": "D0", "tasks": {}}
-    for task in TASK_NAMES:
+    for task in tasks or TASK_NAMES:
         g = _graph_run(attempts, seed, task, "D0")
         inproc = run_cell(task, "D0", "skillgen", False, attempts, seed, "estimate", keep_indices=True)
         out["tasks"][task] = {"graph": g, "in_process": inproc,
@@ -233,6 +235,12 @@ def main(argv=None) -> int:
     rerun = " ".join(["python", "bench/datagen/run.py", *(sys.argv[1:] if argv is None else argv)])
     if a.only:
         for part in a.only:
+            if part == "graph_rates" and set(a.tasks) != set(TASKS):  # these tasks again, the others kept
+                new = graph_rates(max(3, n // 10), a.seed + 4, a.tasks)
+                for t in new["tasks"].values():
+                    t.update(rerun=rerun, measured=time.strftime("%Y-%m-%d"))
+                out[part] = {**out.get(part, {}), "tasks": {**out.get(part, {}).get("tasks", {}), **new["tasks"]}}
+                continue
             out[part] = EXTRAS[part](n, a.seed, a.perception)
             out[part]["rerun"] = rerun
             print(part, json.dumps({k: v for k, v in out[part].items() if k != "pairs"}, indent=2))

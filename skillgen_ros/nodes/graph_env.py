@@ -37,7 +37,8 @@ from skillgen_interfaces.srv import (CaptureCameras, EstimatePoses, LoadDemos, P
 from skillgen_ros.answered import detached, first_answer
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
-from skillgen_ros.core.generation.grasp import GraspTracker, beliefs_along, carriable, new_beliefs, unaccounted
+from skillgen_ros.core.generation.grasp import (FixtureBeliefs, GraspTracker, beliefs_along, carriable,
+                                               unaccounted)
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
 from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
@@ -80,6 +81,7 @@ class RosGraphEnv(GraphCalls):
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.task_pub = node.create_publisher(String, "perception/set_task", latched)
         self._q, self._fingers = np.zeros(7), np.zeros(2)
+        self._q_stamp = -1  # ns: the driver period self._q is from (an older joint_states does not replace it)
         # best effort, as the driver reads osc_target (driver_base.COMMANDS): a lost state costs one resend
         self._joints = LatestMessage(node, JointState, "joint_states",
                                      QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
@@ -93,6 +95,7 @@ class RosGraphEnv(GraphCalls):
         self._plan_seed: int | None = None
         self._plans = 0
         self._estimates: dict[str, Pose] = {}
+        self._fixtures: FixtureBeliefs | None = None   # per scene, made at its first look
         self.last_estimate: tuple[int, dict] | None = None  # (cloud stamp ns, what perception returned)
         self._skill_object: str | None = None
         self.grasps = GraspTracker()
@@ -107,10 +110,26 @@ class RosGraphEnv(GraphCalls):
         if not all(j in pos for j in ARM_JOINTS):
             return False
         with self._lock:
-            self._q = np.array([pos[j] for j in ARM_JOINTS])
+            if ns(m.header.stamp) < self._q_stamp:
+                return True  # the state held is newer (state_history's, after a skill)
+            self._q, self._q_stamp = np.array([pos[j] for j in ARM_JOINTS]), ns(m.header.stamp)
             if all(j in pos for j in FINGER_JOINTS):
                 self._fingers = np.array([pos[j] for j in FINGER_JOINTS])
         return True
+
+    def _take_history_state(self, after_ns: int) -> None:
+        """The driver's newest period from state_history. After a replayed skill the joint_states reader
+        (not spun while the skill ran) can hold a period from early in the skill: observations and the
+        next plan's start were that stale state, and the trajectory dragged the arm back to it (Coffee
+        Prep: from the opened drawer's handle to where the pull began, 14 of 20 graph attempts
+        TASK_FAILED vs 6 in-process)."""
+        h = self.history.periods(after_ns)
+        if not len(h["stamps"]):
+            return
+        i = int(np.argmax(h["stamps"]))
+        with self._lock:
+            if h["stamps"][i] > self._q_stamp:
+                self._q, self._fingers, self._q_stamp = h["q"][i].copy(), h["fingers"][i].copy(), h["stamps"][i]
 
     def wait_for_state(self, timeout: float, after: int = -1) -> bool:
         """Take the driver's newest joint_states (the first after the `after`-th, if given)."""
@@ -136,8 +155,10 @@ class RosGraphEnv(GraphCalls):
         if task != self._task_sent:  # latched: perception keeps it (and builds its models once)
             self.task_pub.publish(String(data=task))
             self._task_sent = task
-        self._estimates, self.last_estimate = {}, None
+        self._estimates, self.last_estimate, self._fixtures = {}, None, None
         self.grasps.clear()
+        with self._lock:
+            self._q_stamp = -1  # a new scene's clock may start over
         if not self.wait_for_state(self.t["state"], after=count):
             raise GraphCallError("no joint_states from the driver after reset", reason="TIMEOUT")
         return resp
@@ -158,10 +179,10 @@ class RosGraphEnv(GraphCalls):
         self._take_joints(joints)
         wrench = self._take_wrench(joints)
         with self._lock:
-            q, f = self._q.copy(), self._fingers.copy()
+            q, f, stamp = self._q.copy(), self._fingers.copy(), self._q_stamp
         ee_pose = Pose.from_matrix(self.kin.fk(q))
         return Observation(ee_pose=ee_pose, gripper=f, joint_positions=q, object_poses=self._belief(ee_pose.matrix()),
-                           ee_wrench=wrench, stamp_ns=None if joints is None else ns(joints.header.stamp))
+                           ee_wrench=wrench, stamp_ns=None if stamp < 0 else stamp)
 
     def _belief(self, T_W_E: np.ndarray) -> dict[str, Pose]:
         """Where the robot believes the objects are: the latest estimates, a held object with the hand."""
@@ -257,9 +278,10 @@ class RosGraphEnv(GraphCalls):
         if resp.status != EstimatePoses.Response.OK and (resp.status != EstimatePoses.Response.OBJECT_MISSING
                                                          or unaccounted(required, seen, self._estimates)):
             raise SkillGenError(f"estimate_poses: {resp.status_name}: {resp.message}", reason="PERCEPTION_FAILED")
-        # the hand occludes a held object (the grasp tracker knows where it is); fixtures keep their first estimate
-        fixtures = {o.id for o in get_task(self.task).objects if o.is_fixture}
-        self._estimates.update(new_beliefs(seen, self._estimates, fixtures))
+        # the hand occludes a held object (the grasp tracker knows where it is); fixtures: FixtureBeliefs
+        confidence = {p.id: p.confidence for p in resp.poses}
+        self._fixtures = self._fixtures or FixtureBeliefs(get_task(self.task))
+        self._estimates.update(self._fixtures.update(seen, confidence, self._estimates, self._next_skill))
         floor = self._cloud_floor
         self.last_estimate = (None if floor is None else ns(floor), seen)  # frames of that stamp (or newer)
         return dict(self._estimates)
@@ -313,10 +335,10 @@ class RosGraphEnv(GraphCalls):
         req.timeout = float(self.t["plan"])
         req.execute = True
         self._moved = True
-        start = self._joints.latest()
-        self._take_joints(start)
+        self._take_joints(self._joints.latest())
         with self._lock:
             req.start_positions = [float(v) for v in self._q]
+            start_ns = self._q_stamp
         req.objects = self._scene_for_planner()
         req.manipulated_object = self._skill_object or ""
         req.extras = self._planner_extras
@@ -329,8 +351,8 @@ class RosGraphEnv(GraphCalls):
         if resp.status == PlanToPose.Response.EXECUTION_FAILED:
             self._check_driver()  # a driver gone mid-trajectory is not a collision
         executed = resp.status in (PlanToPose.Response.SUCCESS, PlanToPose.Response.EXECUTION_FAILED)
-        if executed and start is not None and self.history.ready():
-            obs = self._executed_periods(ns(start.header.stamp))  # measured, as the in-process env records
+        if executed and start_ns >= 0 and self.history.ready():
+            obs = self._executed_periods(start_ns)  # measured, as the in-process env records
         elif resp.status == PlanToPose.Response.SUCCESS:
             obs = self._planned_samples(resp.trajectory)
         else:
@@ -374,6 +396,7 @@ class RosGraphEnv(GraphCalls):
         steps, n = replay_steps(r), int(r.steps)
         if n and len(r.stamps) == n and self.history.ready():
             steps.update(self.history.skill_periods([ns(t) for t in r.stamps]))
+            self._take_history_state(ns(r.stamps[-1]) - 1)
         if self.observation_source == "estimate":  # the belief is what such a dataset records
             steps["object_poses"] = self._beliefs_along(steps)
         # after a skill: a hand closed on the skill's object holds it rigidly; one let go stays where left

@@ -59,7 +59,8 @@ from skillgen_interfaces.msg import PhaseTiming
 from skillgen_interfaces.srv import PlanToPose
 from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
 from skillgen_ros.core.geometry import validate_pose
-from skillgen_ros.core.planning.articulated import box_points, scene_link_boxes, support_below
+from skillgen_ros.core.planning.articulated import (attached_from_parts, box_points, part_boxes, scene_link_boxes,
+                                                    support_below)
 from skillgen_ros.core.planning.collision import HIDDEN_REFINE, SHADOW_PX, AttachedObject, Box, CollisionModel
 from skillgen_ros.core.planning.ik import IKSolver
 from skillgen_ros.core.planning.kinematics import PandaKinematics
@@ -67,7 +68,7 @@ from skillgen_ros.core.planning.occlusion import MAX_REFINE, DepthView
 from skillgen_ros.core.planning.planner import Mode, MotionPlanner, PlanStatus
 from skillgen_ros.core import validation as V
 from skillgen_ros.core.robot import ARM_JOINTS, Q_LOWER, Q_UPPER
-from skillgen_ros.core.tasks import articulated_object
+from skillgen_ros.core.tasks import articulated_object, scene_object_spec
 from skillgen_ros.nodes import convert
 from skillgen_ros.nodes.driver_joints import ObjectJointReader
 from skillgen_ros.nodes.latest import LatestMessage, wait_future
@@ -157,6 +158,7 @@ class PlannerNode(Node):
             raise ParameterError(str(e.args[0])) from None
         self.planner.warm_up()
         self._boxes: dict[str, Box] = {}
+        self._specs: dict = {}   # {id: ObjectSpec} of the scene objects a task defines (their parts)
         # Readers are made on the first request that needs them: a request with start_positions and
         # SOURCE_SCENE (datagen's) reads nothing, and a reader the driver must deliver every period
         # to costs the graph's hot loop even if it is never read.
@@ -242,6 +244,22 @@ class PlannerNode(Node):
             self.get_logger().warning("no object_joint_states: articulated links at their reset values")
         return scene_link_boxes(self._articulated, obstacles, joints)
 
+    def _parts(self, box: Box) -> list[Box]:
+        """An object's obstacle boxes: one per primitive part where its task defines it (a drawer's walls,
+        a nut's ring: the space between them stays free, as in generation in-process), else its box."""
+        spec = self._specs.get(box.name)
+        if spec is None:
+            return [box]
+        return [Box(box.name, box.pose @ Tp, h) for Tp, h in part_boxes(spec)]
+
+    def _attached(self, box: Box, T_ee_obj: np.ndarray) -> AttachedObject:
+        """The held object as spheres filling its parts on a 1 cm grid (attached_from_parts, as generation
+        in-process), else its box on the planner's coarse 3 cm grid."""
+        spec = self._specs.get(box.name)
+        if spec is None:
+            return AttachedObject.from_box(box.name, box.half_extents, T_ee_obj)
+        return attached_from_parts(spec, T_ee_obj)
+
     # -- service -----------------------------------------------------------------------------
     def _on_plan(self, req: PlanToPose.Request, resp: PlanToPose.Response):
         t0 = time.perf_counter()
@@ -279,6 +297,8 @@ class PlannerNode(Node):
             self._boxes = scene_boxes(req.objects)
             self._articulated = {o.id: a for o in req.objects if o.id in self._boxes
                                  for a in [articulated_object(o.type, o.id)] if a is not None}
+            self._specs = {o.id: s for o in req.objects if o.id in self._boxes
+                           for s in [scene_object_spec(o.type, o.id, o.half_extents)] if s is not None}
         t = req.target.header.frame_id
         if t not in WORLD_FRAMES:
             raise InvalidInputError(f"target frame {t!r} unsupported (use world)")
@@ -310,14 +330,15 @@ class PlannerNode(Node):
             box = boxes.get(req.attached_object)
             if box is None:
                 raise InvalidInputError(f"attached object {req.attached_object!r} not in the scene")
-            attached = AttachedObject.from_box(box.name, box.half_extents, np.linalg.inv(T0) @ box.pose)
+            attached = self._attached(box, np.linalg.inv(T0) @ box.pose)
         obstacles = {k: b for k, b in boxes.items() if attached is None or k != attached.name}
         links = self._link_boxes(obstacles)
+        solids = [p for b in obstacles.values() for p in self._parts(b)]
         if req.collision_source == PlanToPose.Request.SOURCE_SCENE:
-            self.cm.set_boxes(list(obstacles.values()) + links)
+            self.cm.set_boxes(solids + links)
             self.cm.set_point_cloud(np.empty((0, 3)))
         else:
-            self.cm.set_boxes(list(obstacles.values()) + links, as_obstacles=False)
+            self.cm.set_boxes(solids + links, as_obstacles=False)
             points, views = self._cloud()
             points = np.vstack([points, box_points(links)])  # perception's cloud dropped the recognized machine
             self.cm.set_point_cloud(points, self_filter_q=q0, attached=attached,
@@ -327,8 +348,8 @@ class PlannerNode(Node):
         manipulated = req.manipulated_object or None
         if manipulated is not None and manipulated not in boxes:
             raise InvalidInputError(f"manipulated object {manipulated!r} not in the scene")
-        parts = list(obstacles.values()) + links  # an articulated object's links too: an opened drawer's tray
-        released = _containing(parts, T0[:3, 3])
+        parts = solids + links  # an articulated object's links too: an opened drawer's tray
+        released = _containing(list(obstacles.values()) + links, T0[:3, 3])  # the hand in a nut's hole too
         start_support = goal_support = "table"
         if attached is not None:
             start_support = support_below(parts, boxes[attached.name].pose[:3, 3]) or "table"

@@ -110,11 +110,35 @@ def unaccounted(required, seen, believed) -> list[str]:
     return [i for i in required if i not in seen and i not in believed]
 
 
-def new_beliefs(seen, believed, fixtures) -> dict:
-    """What an estimate adds to the beliefs: every object seen now, but a fixture (a drawer, a machine) keeps
-    its first estimate, made before anything in the scene moved: fixtures do not move, and a later look can
-    fit their shut-at-reset models to an opened drawer or lid wrongly (Coffee Prep: 10-23 cm off)."""
-    return {k: v for k, v in seen.items() if not (k in fixtures and k in believed)}
+class FixtureBeliefs:
+    """Which of a look's estimates join the beliefs. Every object seen now does, but a fixture (a drawer, a
+    machine) does not move: it keeps its most confident estimate among the looks before the first skill on it,
+    while its links are still at the reset values its model shows. After that skill a look can fit the shut
+    model to an opened drawer or lid wrongly (Coffee Prep: 10-23 cm off), so the belief is frozen. Why the
+    most confident, not the first: a drawer's half-turn explains its cloud nearly as well (only the handle
+    and posts tell them apart); keeping the first look's flip sent open_drawer to the cabinet's back
+    (IK_FAILED, 3 of 7 Coffee Prep attempts in both paths, seed 1004)."""
+
+    def __init__(self, task):
+        """task: a TaskSpec (its objects' is_fixture and its skills' object ids)."""
+        self.fixtures = {o.id for o in task.objects if o.is_fixture}
+        self.first_skill = {f: min((s.index for s in task.skills if s.object_id == f), default=-1)
+                            for f in self.fixtures}
+        self.confidence: dict[str, float] = {}
+
+    def update(self, seen, confidence, believed, next_skill: int) -> dict:
+        """The beliefs to add from `seen` ({id: pose}) and `confidence` ({id: 0..1}) in the look before skill
+        `next_skill`, given the current beliefs."""
+        out = {}
+        for k, v in seen.items():
+            c = float(confidence.get(k, 0.0))
+            if k in self.fixtures and k in believed and (next_skill > self.first_skill[k]
+                                                         or c <= self.confidence.get(k, -1.0)):
+                continue
+            out[k] = v
+            if k in self.fixtures:
+                self.confidence[k] = c
+        return out
 
 
 def carriable(task: str, object_id: str | None) -> str | None:

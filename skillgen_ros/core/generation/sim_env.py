@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import InvalidInputError, SkillGenError
 from ..geometry import Pose
-from ..planning.articulated import object_boxes, part_boxes, support_below
+from ..planning.articulated import attached_from_parts, object_boxes, support_below
 from ..planning.collision import AttachedObject, CollisionModel
 from ..planning.occlusion import DepthView
 from ..planning.ik import IKSolver
@@ -25,10 +25,9 @@ from ..planning.kinematics import PandaKinematics
 from ..planning.planner import Mode, MotionPlanner, PlanStatus
 from ..sim.camera import CameraConfig
 from ..sim.world import SimWorld
-from ..tasks.spec import ObjectSpec
 from ..tasks.suite import get_task
 from .episode import Observation
-from .grasp import CLOSE_PERIODS, GraspTracker, carriable, new_beliefs, unaccounted
+from .grasp import CLOSE_PERIODS, FixtureBeliefs, GraspTracker, carriable, unaccounted
 
 PERCEPTION_MODES = ("estimate", "ground_truth")
 COLLISION_SOURCES = ("scene", "cloud")
@@ -62,16 +61,6 @@ class SimEnvConfig:
         if not 0.0 < self.velocity_scale <= 1.0:
             raise InvalidInputError(f"velocity_scale must be in (0, 1], got {self.velocity_scale}",
                                     reason="INVALID_PARAMETER")
-
-
-def attached_from_parts(obj: ObjectSpec, T_ee_obj: np.ndarray, spacing: float = 0.01) -> AttachedObject:
-    """A held object as spheres filling each primitive part (a nut's ring and handle, not its
-    bounding box, so the hole and the space around the handle stay free for planning). A 1 cm grid
-    overshoots a nut wall's faces by at most 4 mm (2 cm: 8 mm, which refused NutAssembly transfers
-    starting with the held round nut a few mm from the placed square nut)."""
-    spheres = [AttachedObject.from_box(obj.id, h, np.asarray(T_ee_obj) @ Tp, spacing).spheres
-               for Tp, h in part_boxes(obj)]
-    return AttachedObject(obj.id, np.vstack(spheres))
 
 
 class SimGenerationEnv:
@@ -109,6 +98,7 @@ class SimGenerationEnv:
     def reset(self, task: str, variant: str, seed: int):
         self.scene = self.world.reset(task, variant, seed)
         self._estimates = {}
+        self._fixtures = FixtureBeliefs(get_task(task))
         self.last_estimate = None
         self.grasps.clear()
         self._last_gripper, self._closing = -1.0, -1
@@ -158,7 +148,8 @@ class SimGenerationEnv:
         if not res.ok and (res.status is not PerceptionStatus.OBJECT_MISSING
                            or unaccounted(required, seen, self._estimates)):
             raise SkillGenError(f"perception: {res.status.name}: {res.message}", reason="PERCEPTION_FAILED")
-        self._estimates.update(new_beliefs(seen, self._estimates, {o.id for o in self.scene.objects if o.is_fixture}))
+        self._estimates.update(self._fixtures.update(seen, {k: v.confidence for k, v in res.poses.items()},
+                                                     self._estimates, self._next_skill))
         self.last_estimate = (_ns(self.world.time), seen)
         self._obstacle_cloud = res.obstacles
         return dict(self._estimates)

@@ -27,7 +27,9 @@ class ObjectModel:
     normals: np.ndarray
     symmetry: Symmetry = Symmetry.NONE
     source: str = ""   # mesh file it was sampled from (markers, logs)
+    surface: np.ndarray | None = field(default=None, repr=False)  # dense samples for the final score; None: points
     tree: cKDTree = field(init=False, repr=False)
+    surface_tree: cKDTree = field(init=False, repr=False)
     lo: np.ndarray = field(init=False, repr=False)      # AABB of the surface samples
     hi: np.ndarray = field(init=False, repr=False)
     xy_radius: float = field(init=False, repr=False)
@@ -41,6 +43,9 @@ class ObjectModel:
         object.__setattr__(self, "normals", nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12))
         object.__setattr__(self, "symmetry", Symmetry.parse(self.symmetry))
         object.__setattr__(self, "tree", cKDTree(pts))
+        dense = None if self.surface is None else np.asarray(self.surface, float).reshape(-1, 3)
+        object.__setattr__(self, "surface", dense)
+        object.__setattr__(self, "surface_tree", self.tree if dense is None else cKDTree(dense))
         object.__setattr__(self, "lo", pts.min(axis=0))
         object.__setattr__(self, "hi", pts.max(axis=0))
         # Largest distance of the surface from the z axis (the yaw-sweep footprint).
@@ -52,10 +57,15 @@ class ObjectModel:
 
     @staticmethod
     def from_o3d_mesh(mesh: o3d.geometry.TriangleMesh, type: str, symmetry="none",
-                      spacing: float = 0.002, max_points: int = 2500, max_spacing: float = 0.01) -> "ObjectModel":
+                      spacing: float = 0.002, max_points: int = 2500, max_spacing: float = 0.01,
+                      max_surface: int = 200_000) -> "ObjectModel":
         """Sample the mesh surface about every `spacing` metres, capped at `max_points` unless that leaves
         samples farther apart than `max_spacing` (a large mesh: Coffee's machine, 0.52 m2, would get 1.4 cm
-        spacing, and a cluster point mid-face then lies farther from every sample than the scoring gate)."""
+        spacing, and a cluster point mid-face then lies farther from every sample than the scoring gate).
+        A capped model also keeps `surface`, uniform samples about `spacing` apart (at most max_surface), for
+        the final score: at 1 cm samples a cluster point on the true pose's faces is up to 5 mm from every
+        sample, past the 4 mm gate, and the true pose explains ~85% of a drawer's points, as its half-turn
+        does; on the surface 100% vs 96%, the handle and posts the half-turn leaves unexplained."""
         if len(mesh.triangles) == 0:
             raise InvalidInputError(f"model {type!r}: mesh has no triangles")
         mesh = o3d.geometry.TriangleMesh(mesh)
@@ -65,7 +75,11 @@ class ObjectModel:
         o3d.utility.random.seed(0)  # the same model in every process: reproducible poses
         pcd = mesh.sample_points_uniformly(number_of_points=4 * n, use_triangle_normal=True)
         pcd = pcd.farthest_point_down_sample(n)
-        return ObjectModel(type, np.asarray(pcd.points), np.asarray(pcd.normals), Symmetry.parse(symmetry))
+        surface = None
+        if n < area / spacing**2:
+            surface = np.asarray(mesh.sample_points_uniformly(int(min(area / spacing**2, max_surface))).points)
+        return ObjectModel(type, np.asarray(pcd.points), np.asarray(pcd.normals), Symmetry.parse(symmetry),
+                           surface=surface)
 
     @staticmethod
     def from_mesh(path, type: str, symmetry="none", spacing: float = 0.002,

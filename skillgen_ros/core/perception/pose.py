@@ -53,6 +53,8 @@ class PoseParams:
     fpfh_voxel: float = 0.005
     large_radius: float = 0.14       # models with a wider footprint radius get shifted centre hypotheses
     large_shift: float = 0.06        # +- this far in x and y (a grid max_correspondence apart)
+    prune_after: int = 2             # coarse rounds on every hypothesis before only the best prune_keep go on
+    prune_keep: int = 96             # (a large model: 49 centres x 24 yaws = 1176, most of a Coffee Prep frame)
 
 
 @dataclass(frozen=True)
@@ -121,30 +123,29 @@ class ClusterFitter:
         self.rng = np.random.default_rng(seed)
 
     # ------------------------------------------------------------------ hypotheses
-    def upright_hypotheses(self, model: ObjectModel) -> list[np.ndarray]:
-        """Yaws over one symmetry period, each placed at the cluster (top surfaces aligned). A large object
-        (footprint radius over large_radius: Coffee's 30 cm machine) seen from one side is a cluster whose
-        centre lies up to ~5 cm nearer the camera than the object's, beyond the coarse ICP's reach
-        (max_correspondence): its hypotheses also take centres on a grid within +-large_shift."""
+    def upright_hypotheses(self, model: ObjectModel) -> tuple[np.ndarray, np.ndarray]:
+        """Yaws over one symmetry period, each placed at the cluster (top surfaces aligned), as rotations
+        (H, 3, 3) and translations (H, 3) in the table frame. A large object (footprint radius over
+        large_radius: Coffee's 30 cm machine) seen from one side is a cluster whose centre lies up to ~5 cm
+        nearer the camera than the object's, beyond the coarse ICP's reach (max_correspondence): its
+        hypotheses also take centres on a grid within +-large_shift."""
         qu = self.q @ self.R_up  # cluster in the upright (table) frame
         c_xy = 0.5 * (qu[:, :2].min(axis=0) + qu[:, :2].max(axis=0))
         order = model.symmetry.order
         k = 1 if order == 0 else max(int(np.ceil(self.p.yaw_steps / order)), 1)
         period = 2 * np.pi if order == 0 else model.symmetry.yaw_period
         m_c = 0.5 * (model.lo + model.hi)
-        shifts = [np.zeros(2)]
+        shifts = np.zeros((1, 2))
         if model.xy_radius > self.p.large_radius:  # a grid of centres, max_correspondence apart
             g = np.arange(-self.p.large_shift, self.p.large_shift + 1e-9, self.p.max_correspondence)
-            shifts = [np.array([x, y]) for x in g for y in g]
-        out = []
-        for yaw in np.arange(k) * period / k:
-            R = _rz(yaw)
-            for shift in shifts:
-                t = np.empty(3)
-                t[:2] = c_xy - (R @ m_c)[:2] + shift
-                t[2] = qu[:, 2].max() - model.hi[2] if self.table_z is None else self.table_z - model.lo[2]
-                out.append(self._to_world(R, t))
-        return out
+            shifts = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+        Rk = np.stack([_rz(yaw) for yaw in np.arange(k) * period / k])                   # (k, 3, 3)
+        R = np.repeat(Rk, len(shifts), axis=0)                                              # yaw-major
+        t = np.empty((len(R), 3))
+        centres = np.repeat(c_xy - (Rk @ m_c)[:, :2], len(shifts), axis=0)
+        t[:, :2] = centres + np.tile(shifts, (k, 1))
+        t[:, 2] = qu[:, 2].max() - model.hi[2] if self.table_z is None else self.table_z - model.lo[2]
+        return R, t
 
     def global_hypotheses(self, model: ObjectModel, n: int = 2) -> list[np.ndarray]:
         """FPFH + RANSAC registrations of the model onto the cluster (6 DOF, any orientation)."""
@@ -178,25 +179,29 @@ class ClusterFitter:
         return T
 
     # ------------------------------------------------------------------ refinement
-    def coarse_upright(self, model: ObjectModel, Ts: list[np.ndarray]) -> tuple[list[np.ndarray], np.ndarray]:
-        """A few cluster -> model ICP rounds for all yaw hypotheses at once (one KD query per round)."""
+    def coarse_upright(self, model: ObjectModel, R: np.ndarray,
+                       t: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+        """A few cluster -> model ICP rounds for all yaw hypotheses (table-frame R (H, 3, 3), t (H, 3),
+        upright_hypotheses) at once (one grid query per round); the survivors' world poses and fitness."""
         p = self.p
         lock_yaw = model.symmetry.order == 0
         qu = self.q[_subsample(len(self.q), p.coarse_points, self.rng)] @ self.R_up      # (n, 3)
-        R = np.stack([self.R_up.T @ T[:3, :3] for T in Ts])                              # (H, 3, 3)
-        t = np.stack([self.R_up.T @ T[:3, 3] for T in Ts])                               # (H, 3)
-        H, n = len(Ts), len(qu)
+        H, n = len(R), len(qu)
         grid = nearest_grid(model)
-        for gate in np.geomspace(p.max_correspondence, 2 * p.inlier_distance, max(p.coarse_iterations, 1)):
-            local = np.einsum("hnj,hji->hni", qu[None] - t[:, None], R)                  # model frame
+        gates = np.geomspace(p.max_correspondence, 2 * p.inlier_distance, max(p.coarse_iterations, 1))
+        for it, gate in enumerate(gates):
+            local = (qu[None] - t[:, None]) @ R                  # model frame
             d, j = grid.query(local.reshape(-1, 3), gate)
             w = np.isfinite(d).reshape(H, n).astype(float)
+            if it == p.prune_after and H > p.prune_keep:  # a large model's shifted centres: keep the leaders
+                top = np.argsort(-w.mean(axis=1), kind="stable")[: p.prune_keep]
+                R, t, w, j, H = R[top], t[top], w[top], j.reshape(-1, n)[top].reshape(-1), len(top)
             P = model.points[np.minimum(j, len(model.points) - 1)].reshape(H, n, 3)
             z = t[:, 2].copy()
             R, t = _fit_yaw_translation_batch(P, qu, w, R if lock_yaw else None, R, t)
             if self.table_z is not None:
                 t[:, 2] = z
-        local = np.einsum("hnj,hji->hni", qu[None] - t[:, None], R)
+        local = (qu[None] - t[:, None]) @ R
         d, _ = grid.query(local.reshape(-1, 3), p.inlier_distance)
         fitness = np.isfinite(d).reshape(H, n).mean(axis=1)
         return [self._to_world(R[h], t[h]) for h in range(H)], fitness
@@ -246,20 +251,25 @@ class ClusterFitter:
         return np.linalg.inv(np.asarray(Tinv))
 
     # ------------------------------------------------------------------ scoring
-    def score(self, model: ObjectModel, T: np.ndarray, n_points: int, exact: bool = False) -> Fit:
+    def score(self, model: ObjectModel, T: np.ndarray, n_points: int, exact: bool = False,
+              sample: np.ndarray | None = None) -> Fit:
         """Fitness, coverage and RMSE of pose T from (at most) n_points cluster points and as many
-        visible model points. exact: KD-tree distances (final scores) instead of the lookup grid
-        (ranking); the grid's distances are exact to the point it finds, which may not be the
-        nearest one near sharp features."""
+        visible model points. exact: KD-tree distances to the model's dense surface (final scores)
+        instead of the lookup grid (ranking); the grid's distances are exact to the point it finds,
+        which may not be the nearest one near sharp features. sample: the cluster points' indices,
+        shared by the hypotheses being compared, with evenly spread model points: their scores then
+        differ by the poses only, not by two random draws (a drawer's handle, the one feature that
+        tells it from its half-turn, is a few percent of its points: about one draw's noise)."""
         tau = self.p.inlier_distance
-        q = self.q[_subsample(len(self.q), n_points, self.rng)]
+        q = self.q[_subsample(len(self.q), n_points, self.rng) if sample is None else sample]
         local = (q - T[:3, 3]) @ T[:3, :3]
-        d = (model.tree.query(local, distance_upper_bound=tau)[0] if exact
+        d = (model.surface_tree.query(local, distance_upper_bound=tau)[0] if exact
              else nearest_grid(model).query(local, tau)[0])
         inl = np.isfinite(d)
         mv = model.points[visible_mask(model, T, self.camera)]
         if len(mv) > n_points:
-            mv = mv[_subsample(len(mv), n_points, self.rng)]
+            mv = mv[_subsample(len(mv), n_points, self.rng) if sample is None
+                    else np.linspace(0, len(mv) - 1, n_points).astype(int)]
         mw = mv @ T[:3, :3].T + T[:3, 3]
         if self.occlusion is not None:   # hidden behind something the camera saw: not a miss
             mw = mw[~self.occlusion.occluded(mw, max(4 * tau, 0.01))]
@@ -276,7 +286,7 @@ class ClusterFitter:
         p = self.p
         coarse: list[tuple[np.ndarray, bool]] = []
         if p.upright:
-            Ts, fitness = self.coarse_upright(model, self.upright_hypotheses(model))
+            Ts, fitness = self.coarse_upright(model, *self.upright_hypotheses(model))
             # cheap cluster->model fitness preselects; the full score (with coverage) ranks the rest
             coarse += [(Ts[i], True) for i in np.argsort(-fitness)[: p.rank]]
         if p.global_registration or not p.upright:
@@ -285,13 +295,14 @@ class ClusterFitter:
         ranked = sorted(((self.score(model, T, p.coarse_points).score, i) for i, (T, _) in enumerate(coarse)),
                         reverse=True)
         best: Fit | None = None
+        final = _subsample(len(self.q), p.score_points, self.rng)   # one draw scores every refined pose
         for sc, i in ranked[: p.keep]:
             if sc < p.refine_ratio * ranked[0][0] or sc < p.min_coarse_score:
                 break  # clearly worse than the leader, or no match at all: not worth refining
             T, upright = coarse[i]
             T2 = (self.refine_upright(model, T, p.fine_iterations, p.fine_points) if upright
                   else self.refine_6dof(model, T, p.fine_iterations))
-            f = self.score(model, T2, p.score_points, exact=True)
+            f = self.score(model, T2, p.score_points, exact=True, sample=final)
             if best is None or f.score > best.score or (f.score == best.score and f.rmse < best.rmse):
                 best = f
         if best is None:  # nothing refined: report the coarse leader as it is

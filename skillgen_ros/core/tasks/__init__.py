@@ -4,5 +4,5 @@ Pure (no pybullet, no rclpy): the mock driver, perception and the planner import
 """
 from .spec import (MAX_SEED, ObjectSpec, Region, SceneDescription, SceneState, SkillSpec, TaskSpec,  # noqa: F401
                    validate_seed)
-from .suite import TASK_NAMES, articulated_object, get_task, regions_markdown  # noqa: F401
+from .suite import TASK_NAMES, articulated_object, get_task, regions_markdown, scene_object_spec  # noqa: F401
 from ..errors import UnknownTaskError, UnknownVariantError  # noqa: F401

@@ -330,6 +330,18 @@ def articulated_object(object_type: str, object_id: str) -> ObjectSpec | None:
     return None
 
 
+def scene_object_spec(object_type: str, object_id: str, half_extents) -> ObjectSpec | None:
+    """The ObjectSpec of `object_type` under the scene's id when a task has an object of that type with
+    these bounding-box half extents (to 0.1 mm), else None: how a node that gets only a SceneObject
+    plans around its parts (a drawer's walls, not the box around them) as generation in-process does."""
+    h = np.asarray(half_extents, float)
+    for name in _BUILDERS:
+        for o in get_task(name).objects:
+            if o.type == object_type and h.shape == (3,) and np.allclose(o.half_extents, h, atol=1e-4):
+                return o if o.id == object_id else replace(o, id=object_id)
+    return None
+
+
 def regions_markdown() -> str:
     """The docs/tasks.md table of every variant's reset regions (regenerate when regions change)."""
     rows = ["| task | variant | object | x range (m) | y range (m) | yaw range (deg) |", "|---|---|---|---|---|---|"]

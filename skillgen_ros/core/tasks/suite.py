@@ -320,14 +320,20 @@ def get_task(name: str) -> TaskSpec:
     return _CACHE[name]
 
 
+def _task_object(object_type: str, object_id: str, accept) -> ObjectSpec | None:
+    """The first task object of `object_type` that `accept(spec)` takes, under the scene's id (a node that
+    gets only a SceneObject names it by type), or None."""
+    for name in _BUILDERS:
+        for o in get_task(name).objects:
+            if o.type == object_type and accept(o):
+                return o if o.id == object_id else replace(o, id=object_id)
+    return None
+
+
 def articulated_object(object_type: str, object_id: str) -> ObjectSpec | None:
     """The articulated ObjectSpec of `object_type` (a SceneObject's type) under the scene's id, or None if no
     task has an articulated object of that type: how a node that gets only a SceneObject poses its links."""
-    for name in _BUILDERS:
-        for o in get_task(name).objects:
-            if o.type == object_type and o.joints:
-                return o if o.id == object_id else replace(o, id=object_id)
-    return None
+    return _task_object(object_type, object_id, lambda o: bool(o.joints))
 
 
 def scene_object_spec(object_type: str, object_id: str, half_extents) -> ObjectSpec | None:
@@ -335,11 +341,9 @@ def scene_object_spec(object_type: str, object_id: str, half_extents) -> ObjectS
     these bounding-box half extents (to 0.1 mm), else None: how a node that gets only a SceneObject
     plans around its parts (a drawer's walls, not the box around them) as generation in-process does."""
     h = np.asarray(half_extents, float)
-    for name in _BUILDERS:
-        for o in get_task(name).objects:
-            if o.type == object_type and h.shape == (3,) and np.allclose(o.half_extents, h, atol=1e-4):
-                return o if o.id == object_id else replace(o, id=object_id)
-    return None
+    if h.shape != (3,):
+        return None
+    return _task_object(object_type, object_id, lambda o: np.allclose(o.half_extents, h, atol=1e-4))
 
 
 def regions_markdown() -> str:

@@ -35,6 +35,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 from bench.machine import machine_info  # noqa: E402
+from skillgen_ros.core.planning.planner import START_REPAIRS  # noqa: E402
 
 OUT = ROOT / "bench" / "results" / "datagen_diagnosis.json"
 
@@ -54,10 +55,7 @@ def _count_touches(env, body: str) -> list[int]:
     return counter
 
 
-# the planner's start repairs (core/planning/planner.py notes them in PlanResult.message), by a phrase of each
-START_REPAIRS = {"hand_backout": "start: hand touches", "wrist_backout": "start: wrist touches",
-                 "null_space_escape": "start in collision: moved", "retreat_skipped": "retreat skipped",
-                 "retreat_shortened": "retreat shortened", "self_motion_retreat": "null space first"}
+
 
 
 def _count_start_repairs(env) -> Counter:

@@ -41,6 +41,12 @@ from .rrt import JointSpaceRRT, RRTStatus
 from .start_repair import StartRepairs
 from .timing import JointTrajectory, time_parameterize
 
+# The start repairs (planner extras), each noted in PlanResult.message by its phrase: one table, so a
+# reader that counts them (bench/datagen/diagnose.py) matches what the planner writes.
+START_REPAIRS = {"hand_backout": "start: hand touches", "wrist_backout": "start: wrist touches",
+                 "null_space_escape": "start in collision: moved", "retreat_skipped": "retreat skipped",
+                 "retreat_shortened": "retreat shortened", "self_motion_retreat": "null space first, then retreated"}
+
 
 # A measured start may sit slightly past a joint limit (tracking error, encoder noise); within this
 # tolerance it is clipped onto the limit instead of rejected.
@@ -231,16 +237,16 @@ class MotionPlanner(StartRepairs):
         touching = self._touching_hand(q0, c.allow_start, c.collides)
         if touching:  # the replayed skill left the hand against a fixture: back out along the retreat
             c.allow_start = replace(c.allow_start, hand_object=c.allow_start.hand_names() + touching)
-            c.notes.append(f"start: hand touches {', '.join(touching)} (allowed on the retreat)")
+            c.notes.append(f"{START_REPAIRS['hand_backout']} {', '.join(touching)} (allowed on the retreat)")
             return q0, q0[None], touching
         escape = self._null_space_escape(q0, lambda q: bool(c.collides(q[None], c.allow_start)[0]))
         if escape is None and self._wrist_clears(q0, c.allow_start, c.collides):
             c.allow_start = replace(c.allow_start, wrist=True)
-            c.notes.append(f"start: wrist touches {', '.join(c.allow_start.hand_names())} (allowed on the retreat)")
+            c.notes.append(f"{START_REPAIRS['wrist_backout']} {', '.join(c.allow_start.hand_names())} (allowed on the retreat)")
             return q0, q0[None], True
         if escape is None:
             raise _PlanFailure(PlanStatus.START_IN_COLLISION, "start configuration collides")
-        c.notes.append(f"start in collision: moved {np.abs(escape[-1] - q0).max():.2f} rad in the null space")
+        c.notes.append(f"{START_REPAIRS['null_space_escape']} {np.abs(escape[-1] - q0).max():.2f} rad in the null space")
         return escape[-1], escape, ()
 
     def _goal_candidates(self, c: "_Call", q0, T_goal):
@@ -280,18 +286,18 @@ class MotionPlanner(StartRepairs):
             # contact (fingertips at the table after a low grasp) may still get clear on the part
             # of the line IK can follow (the wrist at its limit loses it later).
             if not c.collides(q0[None])[0]:
-                c.notes.append(f"{why}; retreat skipped (start is clear)")
+                c.notes.append(f"{why}; {START_REPAIRS['retreat_skipped']} (start is clear)")
                 return q0[None]
             if not extras:
                 raise _PlanFailure(PlanStatus.START_IN_COLLISION, f"{why} (planner extras off)")
             path = self._partial_retreat(q0, c.edge_free, c.allow_start, c.collides)
             if path is not None:
-                c.notes.append(f"{why}; retreat shortened to where IK held the line")
+                c.notes.append(f"{why}; {START_REPAIRS['retreat_shortened']} to where IK held the line")
                 return path
             path = self._self_motion_retreat(q0, c.edge_free, c.allow_start, c.collides)
             if path is None:
                 raise _PlanFailure(PlanStatus.START_IN_COLLISION, why)
-            c.notes.append(f"{why}; the arm moved in its null space first, then retreated")
+            c.notes.append(f"{why}; the arm moved in its {START_REPAIRS['self_motion_retreat']}")
             return path
         finally:
             c.timings["retreat"] = time.perf_counter() - t

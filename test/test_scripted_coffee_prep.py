@@ -56,3 +56,14 @@ def test_solve_does_the_five_skills_on_d0(world):
     assert slide.min() < CP.DRAWER_OPEN and int(np.argmax(slide < CP.DRAWER_OPEN)) > opened   # then the drawer
     state = world.scene_state()
     assert C.pod_in_holder(M, POD, state) and C.lid_closed(M, state) and CP.mug_placed(M, MUG, state)
+
+
+def test_the_mug_yaw_bound_is_the_pitched_hands_range_at_grasp_and_placement():
+    from skillgen_ros.core.tasks import scripted_coffee_prep as S
+
+    assert S.mug_yaws_allowed(0.0, 0.0, 1)           # straight ahead: EE yaw 0 at both
+    assert not S.mug_yaws_allowed(0.0, 0.0, -1)      # the turned hand: EE yaw 180 deg
+    a, turn = S.MUG_GRASP_MAX_YAW, S.MUG_GRASP_MAX_YAW - S.MUG_MAX_YAW   # grasp at its bound, turned back to 80 deg
+    assert S.mug_yaws_allowed(a, a - turn, 1)
+    assert not S.mug_yaws_allowed(a, a - turn + np.radians(1.0), 1)     # placement 1 deg past its bound
+    assert not S.mug_yaws_allowed(a + np.radians(1.0), a - turn, 1)     # grasp 1 deg past its bound

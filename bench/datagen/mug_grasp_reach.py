@@ -33,17 +33,13 @@ RELS = np.arange(-90, 91, 15)
 
 
 def placement_allows(S, rel: float, mug0, machine) -> bool:
-    """_mug_plan's EE-yaw bounds: some placement approach and pitch sign keep the wrist in range."""
+    """_mug_plan's EE-yaw bounds (mug_yaws_allowed): some placement approach and pitch sign keep the wrist in range."""
     from skillgen_ros.core.tasks.scripted import object_yaw
 
     a = object_yaw(mug0) + np.pi / 2 + rel
     inward = object_yaw(machine) - np.pi / 2 + S.MUG_APPROACH_TURN
-    for sign in (1, -1):
-        y0 = S._wrap(a if sign > 0 else a + np.pi)
-        for q in inward + np.linspace(-S.MUG_APPROACH_SLACK, S.MUG_APPROACH_SLACK, 37):
-            if abs(y0) <= S.MUG_GRASP_MAX_YAW + 1e-9 and abs(y0 + S._wrap(q - a)) <= S.MUG_MAX_YAW + 1e-9:
-                return True
-    return False
+    return any(S.mug_yaws_allowed(a, q, sign) for sign in (1, -1)
+               for q in inward + np.linspace(-S.MUG_APPROACH_SLACK, S.MUG_APPROACH_SLACK, 37))
 
 
 def run_variant(env, variant: str, seeds: int) -> dict:

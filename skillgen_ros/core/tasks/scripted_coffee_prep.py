@@ -91,6 +91,13 @@ def side_pose(point, approach: float, sign: int) -> Pose:
     return Pose(np.asarray(point, float), R.as_quat())
 
 
+def mug_yaws_allowed(a: float, q: float, sign: int) -> bool:
+    """Whether grasping at approach yaw `a` and placing at approach yaw `q` with pitch sign `sign` keeps the pitched
+    hand's EE yaw within MUG_GRASP_MAX_YAW at the grasp and MUG_MAX_YAW at the placement (_mug_plan's bound)."""
+    y0 = _wrap(a if sign > 0 else a + np.pi)
+    return abs(y0) <= MUG_GRASP_MAX_YAW + 1e-9 and abs(y0 + _wrap(q - a)) <= MUG_MAX_YAW + 1e-9
+
+
 def _mug_plan(mug0: Pose, machine: Pose) -> tuple[float, float, int]:
     """(approach yaw at the grasp, approach yaw at the placement, pitch sign): the handle ahead of the hand, the
     hand coming into the machine from its front turned MUG_APPROACH_TURN toward its +x side, the EE yaw within
@@ -106,10 +113,10 @@ def _mug_plan(mug0: Pose, machine: Pose) -> tuple[float, float, int]:
     for sign in (1, -1):
         for a in handle + np.linspace(-MUG_HANDLE_SLACK, MUG_HANDLE_SLACK, 11):
             for q in inward + np.linspace(-MUG_APPROACH_SLACK, MUG_APPROACH_SLACK, 19):
+                if not mug_yaws_allowed(a, q, sign):
+                    continue
                 y0 = _wrap(a if sign > 0 else a + np.pi)
                 y1 = y0 + _wrap(q - a)
-                if abs(y0) > MUG_GRASP_MAX_YAW + 1e-9 or abs(y1) > MUG_MAX_YAW + 1e-9:
-                    continue
                 cost = (max(abs(y0), abs(y1)) + MUG_AWAY_WEIGHT * abs(_wrap(a - away)) + 1.5 * abs(_wrap(q - inward))
                         + (sign < 0) + 10.0 * wrist_near_machine(a))
                 if best is None or cost < best[0]:

@@ -42,3 +42,20 @@ def test_the_newest_driver_period_wins_over_a_stale_joint_state(ros_node):
     assert obs.stamp_ns == 5_000
     assert env._take_joints(_joints(0.3, 6_000))         # a newer period is taken
     np.testing.assert_allclose(env.current_q(), 0.3)
+
+
+def test_newest_robot_state_takes_only_newer_periods_until_a_new_scene():
+    from skillgen_ros.nodes.robot_state import NewestRobotState
+
+    s = NewestRobotState()
+    assert not s.take_joint_state(None)
+    assert s.take_joint_state(_joints(0.1, 2_000))
+    s.take_period(np.full(7, 0.2), [0.03, 0.03], 1_500)      # older than what is held: kept out
+    np.testing.assert_allclose(s.snapshot()[0], 0.1)
+    assert s.take_joint_state(_joints(0.0, 1_000))            # a stale message: accepted, not taken
+    assert s.snapshot()[2] == 2_000
+    s.new_scene()                                              # a reset's clock may start over
+    assert s.take_joint_state(_joints(0.4, 10))
+    q, f, stamp = s.snapshot()
+    np.testing.assert_allclose(q, 0.4), np.testing.assert_allclose(f, 0.02)
+    assert stamp == 10

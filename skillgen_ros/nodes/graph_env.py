@@ -19,7 +19,6 @@ waited for up to timeout_recover s (issue 19, chaos); graph_calls.py holds that 
 """
 from __future__ import annotations
 
-import threading
 import time
 
 import numpy as np
@@ -41,11 +40,11 @@ from skillgen_ros.core.generation.grasp import (FixtureBeliefs, GraspTracker, be
                                                unaccounted)
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
-from skillgen_ros.core.robot import ARM_JOINTS, FINGER_JOINTS
 from skillgen_ros.core.tasks.suite import get_task
 from skillgen_ros.nodes import convert
 from skillgen_ros.nodes.graph_calls import GraphCallError, GraphCalls
 from skillgen_ros.nodes.latest import LatestMessage, wait_future
+from skillgen_ros.nodes.robot_state import NewestRobotState
 from skillgen_ros.nodes.run_state import RunState
 from skillgen_ros.nodes.state_history import DriverHistory, ns
 
@@ -76,12 +75,10 @@ class RosGraphEnv(GraphCalls):
         self.driver_node = driver_node
         self.state = RunState(node)
         self._next_skill = 0
-        self._lock = threading.RLock()
         self.osc_pub = node.create_publisher(OscTarget, "osc_target", 10)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.task_pub = node.create_publisher(String, "perception/set_task", latched)
-        self._q, self._fingers = np.zeros(7), np.zeros(2)
-        self._q_stamp = -1  # ns: the driver period self._q is from (an older joint_states does not replace it)
+        self.robot = NewestRobotState()  # an older joint_states does not replace a newer state_history period
         # best effort, as the driver reads osc_target (driver_base.COMMANDS): a lost state costs one resend
         self._joints = LatestMessage(node, JointState, "joint_states",
                                      QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
@@ -104,18 +101,7 @@ class RosGraphEnv(GraphCalls):
 
     # -- subscriptions
     def _take_joints(self, m) -> bool:
-        if m is None:
-            return False
-        pos = dict(zip(m.name, m.position))
-        if not all(j in pos for j in ARM_JOINTS):
-            return False
-        with self._lock:
-            if ns(m.header.stamp) < self._q_stamp:
-                return True  # the state held is newer (state_history's, after a skill)
-            self._q, self._q_stamp = np.array([pos[j] for j in ARM_JOINTS]), ns(m.header.stamp)
-            if all(j in pos for j in FINGER_JOINTS):
-                self._fingers = np.array([pos[j] for j in FINGER_JOINTS])
-        return True
+        return self.robot.take_joint_state(m)
 
     def _take_history_state(self, after_ns: int) -> None:
         """The driver's newest period from state_history. After a replayed skill the joint_states reader
@@ -124,12 +110,9 @@ class RosGraphEnv(GraphCalls):
         Prep: from the opened drawer's handle to where the pull began, 14 of 20 graph attempts
         TASK_FAILED vs 6 in-process)."""
         h = self.history.periods(after_ns)
-        if not len(h["stamps"]):
-            return
-        i = int(np.argmax(h["stamps"]))
-        with self._lock:
-            if h["stamps"][i] > self._q_stamp:
-                self._q, self._fingers, self._q_stamp = h["q"][i].copy(), h["fingers"][i].copy(), h["stamps"][i]
+        if len(h["stamps"]):
+            i = int(np.argmax(h["stamps"]))
+            self.robot.take_period(h["q"][i], h["fingers"][i], h["stamps"][i])
 
     def wait_for_state(self, timeout: float, after: int = -1) -> bool:
         """Take the driver's newest joint_states (the first after the `after`-th, if given)."""
@@ -157,8 +140,7 @@ class RosGraphEnv(GraphCalls):
             self._task_sent = task
         self._estimates, self.last_estimate, self._fixtures = {}, None, None
         self.grasps.clear()
-        with self._lock:
-            self._q_stamp = -1  # a new scene's clock may start over
+        self.robot.new_scene()
         if not self.wait_for_state(self.t["state"], after=count):
             raise GraphCallError("no joint_states from the driver after reset", reason="TIMEOUT")
         return resp
@@ -178,8 +160,7 @@ class RosGraphEnv(GraphCalls):
         joints = self._joints.latest()
         self._take_joints(joints)
         wrench = self._take_wrench(joints)
-        with self._lock:
-            q, f, stamp = self._q.copy(), self._fingers.copy(), self._q_stamp
+        q, f, stamp = self.robot.snapshot()
         ee_pose = Pose.from_matrix(self.kin.fk(q))
         return Observation(ee_pose=ee_pose, gripper=f, joint_positions=q, object_poses=self._belief(ee_pose.matrix()),
                            ee_wrench=wrench, stamp_ns=None if stamp < 0 else stamp)
@@ -291,8 +272,7 @@ class RosGraphEnv(GraphCalls):
 
     def current_q(self) -> np.ndarray:
         self._take_joints(self._joints.latest())
-        with self._lock:
-            return self._q.copy()
+        return self.robot.snapshot()[0]
 
     def _scene_for_planner(self):
         """The reset's scene objects placed at the latest estimated poses (the planner's boxes locate
@@ -336,9 +316,8 @@ class RosGraphEnv(GraphCalls):
         req.execute = True
         self._moved = True
         self._take_joints(self._joints.latest())
-        with self._lock:
-            req.start_positions = [float(v) for v in self._q]
-            start_ns = self._q_stamp
+        q, _, start_ns = self.robot.snapshot()
+        req.start_positions = [float(v) for v in q]
         req.objects = self._scene_for_planner()
         req.manipulated_object = self._skill_object or ""
         req.extras = self._planner_extras

@@ -13,7 +13,7 @@ PY="$ROOT/.venv/bin/python"
 # the lockstep loop held samples back for 10 s in long processes; fixed by best-effort readers, and
 # three single-process suites passed it since; docs/hsp.md "Known problems".)
 set +e
-"$PY" -m pytest -q -p no:cacheprovider "$@" test
+"$PY" -m pytest -q -p no:cacheprovider --durations=25 "$@" test
 rc=$?
 set -e
 if [ $rc -eq 5 ]; then echo "pytest collected no tests: that is a failure (issue 19)" >&2; exit 1; fi

@@ -57,5 +57,6 @@ def test_newest_robot_state_takes_only_newer_periods_until_a_new_scene():
     s.new_scene()                                              # a reset's clock may start over
     assert s.take_joint_state(_joints(0.4, 10))
     q, f, stamp = s.snapshot()
-    np.testing.assert_allclose(q, 0.4), np.testing.assert_allclose(f, 0.02)
+    np.testing.assert_allclose(q, 0.4)
+    np.testing.assert_allclose(f, 0.02)
     assert stamp == 10

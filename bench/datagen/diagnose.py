@@ -55,9 +55,6 @@ def _count_touches(env, body: str) -> list[int]:
     return counter
 
 
-
-
-
 def _count_start_repairs(env) -> Counter:
     """Wrap env.planner.plan to count, over a run, the plans each start repair served and the plans
     refused START_IN_COLLISION (what a repair's A/B compares on the same seeds)."""

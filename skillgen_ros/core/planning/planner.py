@@ -45,7 +45,8 @@ from .timing import JointTrajectory, time_parameterize
 # reader that counts them (bench/datagen/diagnose.py) matches what the planner writes.
 START_REPAIRS = {"hand_backout": "start: hand touches", "wrist_backout": "start: wrist touches",
                  "null_space_escape": "start in collision: moved", "retreat_skipped": "retreat skipped",
-                 "retreat_shortened": "retreat shortened", "self_motion_retreat": "null space first, then retreated"}
+                 "retreat_shortened": "retreat shortened",
+                 "self_motion_retreat": "null space first, then retreated"}
 
 
 # A measured start may sit slightly past a joint limit (tracking error, encoder noise); within this
@@ -242,11 +243,13 @@ class MotionPlanner(StartRepairs):
         escape = self._null_space_escape(q0, lambda q: bool(c.collides(q[None], c.allow_start)[0]))
         if escape is None and self._wrist_clears(q0, c.allow_start, c.collides):
             c.allow_start = replace(c.allow_start, wrist=True)
-            c.notes.append(f"{START_REPAIRS['wrist_backout']} {', '.join(c.allow_start.hand_names())} (allowed on the retreat)")
+            touched = ", ".join(c.allow_start.hand_names())
+            c.notes.append(f"{START_REPAIRS['wrist_backout']} {touched} (allowed on the retreat)")
             return q0, q0[None], True
         if escape is None:
             raise _PlanFailure(PlanStatus.START_IN_COLLISION, "start configuration collides")
-        c.notes.append(f"{START_REPAIRS['null_space_escape']} {np.abs(escape[-1] - q0).max():.2f} rad in the null space")
+        moved = np.abs(escape[-1] - q0).max()
+        c.notes.append(f"{START_REPAIRS['null_space_escape']} {moved:.2f} rad in the null space")
         return escape[-1], escape, ()
 
     def _goal_candidates(self, c: "_Call", q0, T_goal):

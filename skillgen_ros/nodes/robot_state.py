@@ -32,9 +32,10 @@ class NewestRobotState:
         if not all(j in pos for j in ARM_JOINTS):
             return False
         fingers = np.array([pos[j] for j in FINGER_JOINTS]) if all(j in pos for j in FINGER_JOINTS) else None
+        stamp = ns(m.header.stamp)
         with self._lock:
-            if ns(m.header.stamp) >= self._stamp:
-                self._q, self._stamp = np.array([pos[j] for j in ARM_JOINTS]), ns(m.header.stamp)
+            if stamp >= self._stamp:
+                self._q, self._stamp = np.array([pos[j] for j in ARM_JOINTS]), stamp
                 if fingers is not None:
                     self._fingers = fingers
         return True

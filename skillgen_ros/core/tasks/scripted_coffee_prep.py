@@ -91,11 +91,18 @@ def side_pose(point, approach: float, sign: int) -> Pose:
     return Pose(np.asarray(point, float), R.as_quat())
 
 
-def mug_yaws_allowed(a: float, q: float, sign: int) -> bool:
-    """Whether grasping at approach yaw `a` and placing at approach yaw `q` with pitch sign `sign` keeps the pitched
-    hand's EE yaw within MUG_GRASP_MAX_YAW at the grasp and MUG_MAX_YAW at the placement (_mug_plan's bound)."""
+def mug_ee_yaws(a: float, q: float, sign: int) -> tuple[float, float]:
+    """The pitched hand's EE yaw at the grasp (approach yaw `a`) and at the placement (approach yaw `q`), pitch sign
+    `sign` (side_pose): the hand turns by the approach's change between them."""
     y0 = _wrap(a if sign > 0 else a + np.pi)
-    return abs(y0) <= MUG_GRASP_MAX_YAW + 1e-9 and abs(y0 + _wrap(q - a)) <= MUG_MAX_YAW + 1e-9
+    return y0, y0 + _wrap(q - a)
+
+
+def mug_yaws_allowed(a: float, q: float, sign: int) -> bool:
+    """Whether those EE yaws stay within MUG_GRASP_MAX_YAW at the grasp and MUG_MAX_YAW at the placement
+    (_mug_plan's bound)."""
+    y0, y1 = mug_ee_yaws(a, q, sign)
+    return abs(y0) <= MUG_GRASP_MAX_YAW + 1e-9 and abs(y1) <= MUG_MAX_YAW + 1e-9
 
 
 def _mug_plan(mug0: Pose, machine: Pose) -> tuple[float, float, int]:
@@ -115,8 +122,7 @@ def _mug_plan(mug0: Pose, machine: Pose) -> tuple[float, float, int]:
             for q in inward + np.linspace(-MUG_APPROACH_SLACK, MUG_APPROACH_SLACK, 19):
                 if not mug_yaws_allowed(a, q, sign):
                     continue
-                y0 = _wrap(a if sign > 0 else a + np.pi)
-                y1 = y0 + _wrap(q - a)
+                y0, y1 = mug_ee_yaws(a, q, sign)
                 cost = (max(abs(y0), abs(y1)) + MUG_AWAY_WEIGHT * abs(_wrap(a - away)) + 1.5 * abs(_wrap(q - inward))
                         + (sign < 0) + 10.0 * wrist_near_machine(a))
                 if best is None or cost < best[0]:

@@ -35,7 +35,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 from bench.machine import machine_info  # noqa: E402
-from skillgen_ros.core.planning.planner import START_REPAIRS  # noqa: E402
+from skillgen_ros.core.planning.start_repair import START_REPAIRS  # noqa: E402
 
 OUT = ROOT / "bench" / "results" / "datagen_diagnosis.json"
 

@@ -38,15 +38,8 @@ from .ik import IKSolver
 from .kinematics import PandaKinematics
 from .phases import CartesianPathError, cartesian_line
 from .rrt import JointSpaceRRT, RRTStatus
-from .start_repair import StartRepairs
+from .start_repair import START_REPAIRS, StartRepairs
 from .timing import JointTrajectory, time_parameterize
-
-# The start repairs (planner extras), each noted in PlanResult.message by its phrase: one table, so a
-# reader that counts them (bench/datagen/diagnose.py) matches what the planner writes.
-START_REPAIRS = {"hand_backout": "start: hand touches", "wrist_backout": "start: wrist touches",
-                 "null_space_escape": "start in collision: moved", "retreat_skipped": "retreat skipped",
-                 "retreat_shortened": "retreat shortened",
-                 "self_motion_retreat": "null space first, then retreated"}
 
 
 # A measured start may sit slightly past a joint limit (tracking error, encoder noise); within this

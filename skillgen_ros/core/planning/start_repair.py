@@ -17,6 +17,13 @@ import numpy as np
 
 from .phases import CartesianPathError, cartesian_line
 
+# Each repair is noted in PlanResult.message by its phrase (planner.py writes the notes): one table, so a
+# reader that counts them (bench/datagen/diagnose.py) matches what the planner writes.
+START_REPAIRS = {"hand_backout": "start: hand touches", "wrist_backout": "start: wrist touches",
+                 "null_space_escape": "start in collision: moved", "retreat_skipped": "retreat skipped",
+                 "retreat_shortened": "retreat shortened",
+                 "self_motion_retreat": "null space first, then retreated"}
+
 
 class StartRepairs:
     def _touching_hand(self, q0, allow, collides) -> tuple[str, ...]:

@@ -40,9 +40,21 @@ def pytest_collectreport(report):
         _EMPTY_MODULES.append(report.nodeid)
 
 
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    """pytest-xdist's controller: collect the empty modules each worker found (they collect, it does not)."""
+    _EMPTY_MODULES.extend(m for m in getattr(node, "workeroutput", {}).get("empty_modules", ())
+                          if m not in _EMPTY_MODULES)
+
+
 def pytest_sessionfinish(session, exitstatus):
     """An empty collection is a failure, not a pass (issue 19): no tests at all, or a test module
-    that holds none (unless -k/-m chose to deselect)."""
+    that holds none (unless -k/-m chose to deselect). Under pytest-xdist a worker hands its list to
+    the controller (pytest_testnodedown), whose exit status is the run's."""
+    workeroutput = getattr(session.config, "workeroutput", None)
+    if workeroutput is not None:
+        workeroutput["empty_modules"] = list(_EMPTY_MODULES)
+        return
     filtered = session.config.getoption("keyword") or session.config.getoption("markexpr")
     if exitstatus == pytest.ExitCode.NO_TESTS_COLLECTED or (_EMPTY_MODULES and not filtered):
         if _EMPTY_MODULES:

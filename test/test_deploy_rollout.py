@@ -134,6 +134,23 @@ def test_a_skill_out_of_budget_goes_on_to_the_next_and_the_rollout_reports_polic
                                                   "1": {"budget": 1, "task_success": 1}}
 
 
+def test_a_motion_that_fails_after_a_skill_ran_out_of_budget_says_so():
+    """The reason is the motion's; the message names the skill whose budget ran out before it."""
+
+    class FailSecondMotion(FakeWorld):
+        def plan_and_execute(self, target, mode, attached):
+            self.plan_status = "GOAL_IN_COLLISION" if any(c.startswith("plan:") for c in self.calls) else "OK"
+            return super().plan_and_execute(target, mode, attached)
+
+    world = FailSecondMotion()
+    res, _ = _run(world=world, policy=OraclePolicy(world, never_terminate=True), skill_max_steps=5)
+    assert res.reason is DeployReason.INITIATION_UNREACHABLE, res.message
+    assert res.message.endswith("(after skill(s) [0] ran out of their 5-step budget)"), res.message
+    ok_world = FailSecondMotion()
+    plain, _ = _run(world=ok_world, policy=OraclePolicy(ok_world))  # skill 0 ended by T: no such note
+    assert plain.reason is DeployReason.INITIATION_UNREACHABLE and "budget" not in plain.message, plain.message
+
+
 def test_rollout_step_budget():
     res, _ = _run(max_steps=15)
     assert res.reason is DeployReason.POLICY_TIMEOUT and res.steps == 15

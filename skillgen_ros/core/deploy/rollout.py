@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -298,6 +298,9 @@ def run_rollout(env, policy, task, reset_seed: int, variant: str | None, config:
                        if late else "every skill terminated but the task success check failed")
     except _Fail as f:
         reason, message = f.reason, str(f)
+        late = [s.skill_index for s in r.logs if s.ended == "budget"]
+        if late:  # the reason names the step that failed; this names the skill that ran out before it
+            message += f" (after skill(s) {late} ran out of their {config.skill_max_steps}-step budget)"
     return RolloutResult(success=reason is DeployReason.OK, reason=reason, message=message, steps=r.steps,
                          reset_seed=int(reset_seed), skills=tuple(r.logs),
                          ee_trajectory=np.array(r.ee) if r.ee else np.zeros((0, 7)), policy_seconds=r.policy_s,

@@ -32,7 +32,7 @@ ROSDEP_KEYS = {
     "pyyaml": "python3-yaml", "numba": "python3-numba", "psutil": "python3-psutil", "torch": "python3-torch",
     "foxglove-sdk": "python3-foxglove-sdk-pip", "imageio-ffmpeg": "python3-imageio-ffmpeg-pip",
     "websockets": "python3-websockets", "ray": "python3-ray-pip",
-    "pytest": "python3-pytest", "hypothesis": "python3-hypothesis",
+    "pytest": "python3-pytest", "pytest-xdist": "python3-pytest-xdist", "hypothesis": "python3-hypothesis",
 }
 # build tooling and the ROS wheels themselves (their ROS names are listed by package.xml directly)
 NOT_RUNTIME = ("ros-jazzy-", "catkin-pkg", "setuptools")

@@ -12,7 +12,7 @@ PY="$ROOT/.venv/bin/python"
 # Two pytest-xdist workers (SKILLGEN_TEST_WORKERS; 0 runs one process), whole files to a worker
 # (--dist loadfile: a module's graph fixture starts once). Much of the suite waits on nodes, DDS discovery
 # and subprocess start-up, so two workers on two cores took 21.7 min where one process took 28.2, the same
-# run under the same load (2026-12-06; docs/testing.md). ROS domains are flock-leased across processes, and
+# run under the same load, and 14.4 min on the quiet machine (one process: 23.0; 2026-12-06, docs/testing.md). ROS domains are flock-leased across processes, and
 # test/conftest.py fails a module without tests in either mode. (test_hsp_graph.py once ran in its own
 # process: a reliable reader on the lockstep loop held samples back for 10 s in long processes; fixed by
 # best-effort readers; docs/hsp.md "Known problems".)

@@ -133,6 +133,10 @@ class _Rollout:
         except InvalidInputError as e:
             raise _Fail(DeployReason.BAD_CHECKPOINT, f"the checkpoint does not fit this deployment: {e}") from e
 
+    def out_of_budget(self) -> list[int]:
+        """The skills so far whose step budget ran out (each ended there and the next one started)."""
+        return [s.skill_index for s in self.logs if s.ended == "budget"]
+
     def _budget(self) -> None:
         if self.steps >= self.cfg.max_steps:
             raise _Fail(DeployReason.POLICY_TIMEOUT, f"rollout exceeded {self.cfg.max_steps} control steps")
@@ -292,13 +296,13 @@ def run_rollout(env, policy, task, reset_seed: int, variant: str | None, config:
         if not r.succeeded:
             r.succeeded = bool(env.task_success())
         if not r.succeeded:
-            late = [s.skill_index for s in r.logs if s.ended == "budget"]
+            late = r.out_of_budget()
             reason = DeployReason.POLICY_TIMEOUT if late else DeployReason.TASK_FAILED
             message = (f"skill(s) {late} ran out of their {config.skill_max_steps}-step budget and the task failed"
                        if late else "every skill terminated but the task success check failed")
     except _Fail as f:
         reason, message = f.reason, str(f)
-        late = [s.skill_index for s in r.logs if s.ended == "budget"]
+        late = r.out_of_budget()
         if late:  # the reason names the step that failed; this names the skill that ran out before it
             message += f" (after skill(s) {late} ran out of their {config.skill_max_steps}-step budget)"
     return RolloutResult(success=reason is DeployReason.OK, reason=reason, message=message, steps=r.steps,

@@ -102,6 +102,10 @@ if ! stamp_ok pkg "$h"; then
   done
   stamp_set pkg "$h"
 fi
+# 6. The planner's numba kernels into numba's cache (about 10 s once, then under a second): a planner
+#    node still compiling cannot act on Ctrl-C, so a graph stopped right after a fresh clone's first
+#    start was escalated to SIGTERM (CI, 2026-12-06; skillgen_ros/core/planning/warm.py).
+"$VPY" -m skillgen_ros.core.planning.warm >&2
 # Activation sets what ROS needs on a pip-only machine (no setup.bash here).
 if ! grep -q skillgen_ros-env "$VENV/bin/activate"; then
   cat >> "$VENV/bin/activate" <<'ACT'

@@ -207,3 +207,35 @@ def test_evaluation_rollouts_split_over_workers_summarize_as_one_process(tmp_pat
     a, b = one.to_json(), two.to_json()
     a.pop("inference_ms_per_step"), b.pop("inference_ms_per_step")  # timing, not outcome
     assert a == b and a["reset_seeds"] == [r.reset_seed for r in two.results]
+
+
+def test_a_network_resumed_under_a_new_record_times_only_the_steps_it_trained(tmp_path, monkeypatch):
+    """A network resumed at 13.5k from an earlier run's last.pt, under a new --out, trains two 4.5k chunks:
+    ms_per_train_step divides this record's seconds by the 9k steps they cover, not by 22.5k."""
+    from skillgen_ros.core.learning import trainer
+
+    a = SimpleNamespace(work=str(tmp_path), demos=1000, hidden=400, mlp_hidden=[1024, 1024], budget_steps=22500,
+                        budget_minutes=0, steps_per_epoch=100, device="cpu", seed=0, threads=1, chunk_steps=4500)
+    out = run.net_dir("NutAssembly/D1", "hsp", a)
+    out.mkdir(parents=True)
+    step = {"now": 13500}
+
+    def fake_train(req):
+        step["now"] += req.stop_after
+        last = out / "last.pt"
+        last.write_bytes(b"x")
+        return SimpleNamespace(config=SimpleNamespace(step=step["now"]), finished=False, last_path=str(last))
+
+    clock = iter(range(0, 10_000, 100))  # every time.time() call is 100 s after the last
+    monkeypatch.setattr(trainer, "train", fake_train)
+    monkeypatch.setattr(run, "_trained_steps", lambda last: step["now"])
+    monkeypatch.setattr(run.time, "time", lambda: float(next(clock)))
+    calls = _calls(monkeypatch)
+    store = _store(tmp_path, {})
+    store.save = lambda: None
+    (out / "last.pt").write_bytes(b"x")
+    run.train_network(store, "NutAssembly/D1", "hsp", "data.hdf5", ["HSP-TAMP"], a)
+    rec = store.cell("NutAssembly/D1")["networks"]["hsp"]
+    assert [c[0] for c in calls] == [18000, 22500]
+    assert (rec["steps"], rec["timed_steps"], rec["train_seconds"]) == (22500, 9000, 200.0)
+    assert abs(rec["ms_per_train_step"] - 1000 * 200 / 9000) < 1e-9

@@ -206,11 +206,12 @@ def train_network(store: Store, cell: str, network: str, dataset: str, methods, 
     rec = store.cell(cell)["networks"].setdefault(network, {"train_seconds": 0.0, "steps": 0, "finished": False})
     if rec["steps"] and not (out / "last.pt").exists():   # recorded by a machine whose out/ is gone: start over
         print(f"  {cell} {network}: {out / 'last.pt'} is gone; training again from step 0", flush=True)
-        rec.update(train_seconds=0.0, steps=0, finished=False)
+        rec.update(train_seconds=0.0, steps=0, timed_steps=0, finished=False)
         for m in methods:
             lost = store.cell(cell)["methods"].pop(m, None)
             if lost:
                 store.cell(cell).setdefault("lost_evals", {})[m] = lost.get("evals", [])
+    rec.setdefault("timed_steps", rec["steps"])  # records written before timed_steps timed all their steps
     rec.update(dataset=dataset, hidden=a.hidden, mlp_hidden=list(a.mlp_hidden), budget_steps=a.budget_steps,
                budget_minutes=a.budget_minutes)
     net = NetworkConfig(rnn_hidden=a.hidden, mlp_hidden=tuple(a.mlp_hidden))
@@ -219,16 +220,27 @@ def train_network(store: Store, cell: str, network: str, dataset: str, methods, 
                      threads=a.threads)
     _evaluate_unevaluated(store, cell, network, out / f"step_{rec['steps']:06d}.pt", rec["steps"], methods, a)
     while not rec["finished"] and not (a.budget_minutes and rec["train_seconds"] >= 60 * a.budget_minutes):
+        before = _trained_steps(out / "last.pt")
         t = time.time()
         r = train(TrainRequest(dataset=dataset, output_dir=str(out), network=net, train=tc,
                                resume=(out / "last.pt").exists(), stop_after=a.chunk_steps, progress=False))
         rec["train_seconds"] += time.time() - t
         rec["steps"], rec["finished"] = int(r.config.step), bool(r.finished or r.config.step >= a.budget_steps)
-        rec["ms_per_train_step"] = 1000 * rec["train_seconds"] / max(1, rec["steps"])
+        # timed_steps: the steps this record's train_seconds cover (a network resumed from another run's
+        # last.pt under a new --out starts its record at 0 s but at that run's step)
+        rec["timed_steps"] += int(r.config.step) - before
+        rec["ms_per_train_step"] = 1000 * rec["train_seconds"] / max(1, rec["timed_steps"])
         kept = out / f"step_{int(r.config.step):06d}.pt"  # every chunk's checkpoint stays: --reevaluate reads them
         _copy(Path(r.last_path), kept)
         store.save()
         evaluate_methods(store, cell, network, kept, int(r.config.step), methods, a)
+
+
+def _trained_steps(last: Path) -> int:
+    """The step a resumed training starts from (0 without a last.pt)."""
+    from skillgen_ros.core.learning.checkpoint import read_checkpoint
+
+    return int(read_checkpoint(last)[0].step) if last.exists() else 0
 
 
 def _evaluate_unevaluated(store: Store, cell: str, network: str, kept: Path, step: int, methods, a) -> None:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skillgen_ros.core.generation.grasp import FixtureBeliefs, carriable
+from skillgen_ros.core.generation.grasp import LookBeliefs, carriable
 from skillgen_ros.core.tasks import get_task
 from skillgen_ros.core.planning.articulated import support_below
 from skillgen_ros.core.planning.collision import Box
@@ -24,15 +24,16 @@ def test_a_fixtures_link_does_not_carry_the_fixture():
 def test_a_fixture_keeps_its_most_confident_estimate_until_its_first_skill():
     """Coffee Prep: the drawer's first skill is 2 (open_drawer), the machine's 1. Looks before skill 0, 1 and 2
     see the drawer shut: the most confident of them wins (a flipped drawer scores lower); from skill 3 on the
-    drawer is open and its belief frozen, however confident a look is. Movable objects always take the look."""
-    beliefs = FixtureBeliefs(get_task("CoffeePreparation"))
-    assert beliefs.first_skill == {"drawer": 2, "coffee_machine": 1}
+    drawer is open and its belief frozen, however confident a look is. The mug (first skill 0) takes every look
+    after the one before its grasp."""
+    beliefs = LookBeliefs(get_task("CoffeePreparation"))
+    assert {k: beliefs.first_skill[k] for k in ("drawer", "coffee_machine")} == {"drawer": 2, "coffee_machine": 1}
     flipped, right, opened = np.eye(4), np.eye(4) + 1, np.eye(4) + 2
     believed = {}
     believed.update(beliefs.update({"drawer": flipped, "mug": flipped}, {"drawer": 0.5, "mug": 0.9}, believed, 0))
     assert believed["drawer"] is flipped                                    # the first look is taken as it is
     got = beliefs.update({"drawer": right, "mug": right}, {"drawer": 0.6, "mug": 0.1}, believed, 1)
-    assert got["drawer"] is right and got["mug"] is right                  # more confident; the mug always
+    assert got["drawer"] is right and got["mug"] is right                  # more confident; the mug was grasped
     believed.update(got)
     assert "drawer" not in beliefs.update({"drawer": flipped}, {"drawer": 0.55}, believed, 2)   # less confident
     assert "drawer" not in beliefs.update({"drawer": opened}, {"drawer": 0.99}, believed, 3)    # after its skill
@@ -88,3 +89,27 @@ def test_the_graph_env_keeps_beliefs_when_a_look_misses_everything_seen_before(g
     with pytest.raises(SkillGenError) as e:             # the look failed as a whole (empty cloud)
         graph_env.estimate_poses()
     assert e.value.reason == "PERCEPTION_FAILED"
+
+
+def test_an_object_no_skill_has_acted_on_keeps_its_most_confident_look(monkeypatch):
+    """Nut Assembly: the round nut's first skill is 2. Looks before skills 0-2 keep the most confident of its
+    estimates (the look before skill 2, taken from where the square nut's place left the arm, may not see the
+    handle: one octagon step off); from skill 3 on it has been grasped and takes every look. The square nut
+    (first skill 0) takes every look after the first; a peg (a fixture) keeps its best, then freezes."""
+    task = get_task("NutAssembly")
+    beliefs = LookBeliefs(task)
+    first = {s.object_id: s.index for s in reversed(task.skills)}
+    assert first["round_nut"] == 2 and first["square_nut"] == 0
+    good, off, moved = np.eye(4), np.eye(4) + 1, np.eye(4) + 2
+    believed = {}
+    believed.update(beliefs.update({"round_nut": good, "square_nut": good}, {"round_nut": 0.8, "square_nut": 0.8},
+                                   believed, 0))
+    assert believed["round_nut"] is good
+    got = beliefs.update({"round_nut": off, "square_nut": off}, {"round_nut": 0.6, "square_nut": 0.1}, believed, 1)
+    assert "round_nut" not in got and got["square_nut"] is off          # less confident, untouched: kept
+    assert "round_nut" not in beliefs.update({"round_nut": off}, {"round_nut": 0.79}, believed, 2)
+    assert beliefs.update({"round_nut": off}, {"round_nut": 0.9}, believed, 2) == {"round_nut": off}  # better
+    assert beliefs.update({"round_nut": moved}, {"round_nut": 0.1}, believed, 3) == {"round_nut": moved}  # grasped
+    monkeypatch.setattr(LookBeliefs, "KEEP_UNTOUCHED", False)          # the old rule: every look
+    old = LookBeliefs(task)
+    assert old.update({"round_nut": off}, {"round_nut": 0.1}, {"round_nut": good}, 1) == {"round_nut": off}

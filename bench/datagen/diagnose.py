@@ -331,7 +331,12 @@ def main(argv=None) -> int:
                     help="estimate: also each look's pose errors against the sim's truth, by outcome")
     ap.add_argument("--without-wrist-backout", action="store_true",
                     help="A/B: the planner without its wrist back-out (start_repair.py, added 2026-12-05)")
+    ap.add_argument("--look-rule", default="untouched", choices=["untouched", "latest"],
+                    help="estimate, A/B: latest = a movable object takes every look (LookBeliefs before 2026-12-06)")
     a = ap.parse_args(argv)
+    if a.look_rule == "latest":
+        from skillgen_ros.core.generation.grasp import LookBeliefs
+        LookBeliefs.KEEP_UNTOUCHED = False
     if a.without_wrist_backout:
         from skillgen_ros.core.planning.start_repair import StartRepairs
         StartRepairs._wrist_clears = staticmethod(lambda q0, allow, collides: False)
@@ -355,11 +360,16 @@ def main(argv=None) -> int:
         e["wrist_backout"] = not a.without_wrist_backout
         e["command"] += " --without-wrist-backout" if a.without_wrist_backout else ""
         e["command"] += f" --perception {a.perception}" if a.perception != "ground_truth" else ""
+        if a.perception == "estimate":
+            e["look_rule"] = a.look_rule
+            e["command"] += f" --look-rule {a.look_rule}"
 
         def key(x):
             return (x["task"], x["variant"], x.get("method", "skillgen"), x["action_noise"], x["seed"], x["profile"],
                     tuple(x.get("mimicgen_offsets", ())), x.get("augment", False), x.get("pod_mass", 0.0),
-                    x.get("wrist_backout", True), x.get("perception", "ground_truth"))
+                    x.get("wrist_backout", True), x.get("perception", "ground_truth"), x.get("look_rule", "latest"))
+        if OUT.exists():  # re-read: another diagnosis may have written its entry since this one started
+            out["entries"] = json.loads(OUT.read_text())["entries"]
         out["entries"] = [x for x in out["entries"] if key(x) != key(e)] + [e]
         OUT.write_text(json.dumps(out, indent=1) + "\n")
         per = ", ".join(f"{k}: {v['successes']}/{v['attempts']}" for k, v in e["by_source_demo"].items())

@@ -36,7 +36,7 @@ from skillgen_interfaces.srv import (CaptureCameras, EstimatePoses, LoadDemos, P
 from skillgen_ros.answered import detached, first_answer
 from skillgen_ros.core.errors import SkillGenError
 from skillgen_ros.core.generation.episode import Observation
-from skillgen_ros.core.generation.grasp import (FixtureBeliefs, GraspTracker, beliefs_along, carriable,
+from skillgen_ros.core.generation.grasp import (LookBeliefs, GraspTracker, beliefs_along, carriable,
                                                unaccounted)
 from skillgen_ros.core.geometry import Pose
 from skillgen_ros.core.planning.kinematics import PandaKinematics
@@ -92,7 +92,7 @@ class RosGraphEnv(GraphCalls):
         self._plan_seed: int | None = None
         self._plans = 0
         self._estimates: dict[str, Pose] = {}
-        self._fixtures: FixtureBeliefs | None = None   # per scene, made at its first look
+        self._beliefs: LookBeliefs | None = None   # per scene, made at its first look
         self.last_estimate: tuple[int, dict] | None = None  # (cloud stamp ns, what perception returned)
         self._skill_object: str | None = None
         self.grasps = GraspTracker()
@@ -138,7 +138,7 @@ class RosGraphEnv(GraphCalls):
         if task != self._task_sent:  # latched: perception keeps it (and builds its models once)
             self.task_pub.publish(String(data=task))
             self._task_sent = task
-        self._estimates, self.last_estimate, self._fixtures = {}, None, None
+        self._estimates, self.last_estimate, self._beliefs = {}, None, None
         self.grasps.clear()
         self.robot.new_scene()
         if not self.wait_for_state(self.t["state"], after=count):
@@ -259,10 +259,10 @@ class RosGraphEnv(GraphCalls):
         if resp.status != EstimatePoses.Response.OK and (resp.status != EstimatePoses.Response.OBJECT_MISSING
                                                          or unaccounted(required, seen, self._estimates)):
             raise SkillGenError(f"estimate_poses: {resp.status_name}: {resp.message}", reason="PERCEPTION_FAILED")
-        # the hand occludes a held object (the grasp tracker knows where it is); fixtures: FixtureBeliefs
+        # the hand occludes a held object (the grasp tracker knows where it is); untouched objects and fixtures: LookBeliefs
         confidence = {p.id: p.confidence for p in resp.poses}
-        self._fixtures = self._fixtures or FixtureBeliefs(get_task(self.task))
-        self._estimates.update(self._fixtures.update(seen, confidence, self._estimates, self._next_skill))
+        self._beliefs = self._beliefs or LookBeliefs(get_task(self.task))
+        self._estimates.update(self._beliefs.update(seen, confidence, self._estimates, self._next_skill))
         floor = self._cloud_floor
         self.last_estimate = (None if floor is None else ns(floor), seen)  # frames of that stamp (or newer)
         return dict(self._estimates)

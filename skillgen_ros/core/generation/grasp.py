@@ -110,21 +110,25 @@ def unaccounted(required, seen, believed) -> list[str]:
     return [i for i in required if i not in seen and i not in believed]
 
 
-class FixtureBeliefs:
-    """Which of a look's estimates join the beliefs. Every object seen now does, but a fixture (a drawer, a
-    machine) does not move: it keeps its most confident estimate among the looks before the first skill on it,
-    while its links are still at the reset values its model shows. After that skill a look can fit the shut
-    model to an opened drawer or lid wrongly (Coffee Prep: 10-23 cm off), so the belief is frozen. Why the
-    most confident, not the first: a drawer's half-turn explains its cloud nearly as well (only the handle
-    and posts tell them apart); keeping the first look's flip sent open_drawer to the cabinet's back
-    (IK_FAILED, 3 of 7 Coffee Prep attempts in both paths, seed 1004)."""
+class LookBeliefs:
+    """Which of a look's estimates join the beliefs. An object no skill has acted on yet keeps its most confident
+    estimate among the looks so far, until its first skill: a fixture (a drawer, a machine) because its links are
+    still at the reset values its model shows, a movable object because nothing moved it. Why the most confident,
+    not the latest: a later look is taken from wherever the last skill left the arm, which can hide what breaks an
+    object's symmetry (Nut Assembly: the round nut's handle; looks 46 deg off, one octagon step: 24/40 estimated
+    attempts with every look taken, 34/40 with this rule, 33/40 with true poses; docs/perception.md), and a drawer's half-turn explains its cloud nearly as well as the right pose (keeping
+    the first look's flip sent open_drawer to the cabinet's back, IK_FAILED). After its first skill a movable
+    object takes every look (it moved), and a fixture's belief is frozen: a look can fit the shut model to an
+    opened drawer or lid wrongly (Coffee Prep: 10-23 cm off). An object no skill acts on takes every look."""
+
+    KEEP_UNTOUCHED = True  # False: movable objects take every look (the rule before 2026-12-06; diagnose.py)
 
     def __init__(self, task):
         """task: a TaskSpec (its objects' is_fixture and its skills' object ids)."""
         self.fixtures = {o.id for o in task.objects if o.is_fixture}
-        self.first_skill = {f: min((s.index for s in task.skills if s.object_id == f), default=-1)
-                            for f in self.fixtures}
-        self.confidence: dict[str, float] = {}
+        self.first_skill = {o.id: min((s.index for s in task.skills if s.object_id == o.id), default=-1)
+                            for o in task.objects}
+        self.confidence: dict[str, float] = {}  # the kept estimate's, for objects not yet acted on
 
     def update(self, seen, confidence, believed, next_skill: int) -> dict:
         """The beliefs to add from `seen` ({id: pose}) and `confidence` ({id: 0..1}) in the look before skill
@@ -132,11 +136,12 @@ class FixtureBeliefs:
         out = {}
         for k, v in seen.items():
             c = float(confidence.get(k, 0.0))
-            if k in self.fixtures and k in believed and (next_skill > self.first_skill[k]
-                                                         or c <= self.confidence.get(k, -1.0)):
+            untouched = next_skill <= self.first_skill.get(k, -1)
+            kept = k in self.fixtures or (self.KEEP_UNTOUCHED and untouched)
+            if k in believed and kept and (not untouched or c <= self.confidence.get(k, -1.0)):
                 continue
             out[k] = v
-            if k in self.fixtures:
+            if kept:
                 self.confidence[k] = c
         return out
 

@@ -27,7 +27,7 @@ from ..sim.camera import CameraConfig
 from ..sim.world import SimWorld
 from ..tasks.suite import get_task
 from .episode import Observation
-from .grasp import CLOSE_PERIODS, FixtureBeliefs, GraspTracker, carriable, unaccounted
+from .grasp import CLOSE_PERIODS, LookBeliefs, GraspTracker, carriable, unaccounted
 
 PERCEPTION_MODES = ("estimate", "ground_truth")
 COLLISION_SOURCES = ("scene", "cloud")
@@ -98,7 +98,7 @@ class SimGenerationEnv:
     def reset(self, task: str, variant: str, seed: int):
         self.scene = self.world.reset(task, variant, seed)
         self._estimates = {}
-        self._fixtures = FixtureBeliefs(get_task(task))
+        self._beliefs = LookBeliefs(get_task(task))
         self.last_estimate = None
         self.grasps.clear()
         self._last_gripper, self._closing = -1.0, -1
@@ -148,8 +148,8 @@ class SimGenerationEnv:
         if not res.ok and (res.status is not PerceptionStatus.OBJECT_MISSING
                            or unaccounted(required, seen, self._estimates)):
             raise SkillGenError(f"perception: {res.status.name}: {res.message}", reason="PERCEPTION_FAILED")
-        self._estimates.update(self._fixtures.update(seen, {k: v.confidence for k, v in res.poses.items()},
-                                                     self._estimates, self._next_skill))
+        self._estimates.update(self._beliefs.update(seen, {k: v.confidence for k, v in res.poses.items()},
+                                                    self._estimates, self._next_skill))
         self.last_estimate = (_ns(self.world.time), seen)
         self._obstacle_cloud = res.obstacles
         return dict(self._estimates)

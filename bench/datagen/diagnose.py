@@ -333,7 +333,12 @@ def main(argv=None) -> int:
                     help="A/B: the planner without its wrist back-out (start_repair.py, added 2026-12-05)")
     ap.add_argument("--look-rule", default="untouched", choices=["untouched", "latest"],
                     help="estimate, A/B: latest = a movable object takes every look (LookBeliefs before 2026-12-06)")
+    ap.add_argument("--finger-friction", type=float, nargs=2, metavar=("LATERAL", "SPINNING"),
+                    help="an experiment: the fingers' pybullet friction instead of sim/world.py's (1.5, 0.01)")
     a = ap.parse_args(argv)
+    if a.finger_friction:
+        from skillgen_ros.core.sim import world
+        world.FINGER_LATERAL_FRICTION, world.FINGER_SPINNING_FRICTION = a.finger_friction
     if a.look_rule == "latest":
         from skillgen_ros.core.generation.grasp import LookBeliefs
         LookBeliefs.KEEP_UNTOUCHED = False
@@ -360,6 +365,9 @@ def main(argv=None) -> int:
         e["wrist_backout"] = not a.without_wrist_backout
         e["command"] += " --without-wrist-backout" if a.without_wrist_backout else ""
         e["command"] += f" --perception {a.perception}" if a.perception != "ground_truth" else ""
+        if a.finger_friction:
+            e["finger_friction"] = list(a.finger_friction)
+            e["command"] += " --finger-friction {} {}".format(*a.finger_friction)
         if a.perception == "estimate":
             e["look_rule"] = a.look_rule
             e["command"] += f" --look-rule {a.look_rule}"
@@ -367,7 +375,8 @@ def main(argv=None) -> int:
         def key(x):
             return (x["task"], x["variant"], x.get("method", "skillgen"), x["action_noise"], x["seed"], x["profile"],
                     tuple(x.get("mimicgen_offsets", ())), x.get("augment", False), x.get("pod_mass", 0.0),
-                    x.get("wrist_backout", True), x.get("perception", "ground_truth"), x.get("look_rule", "latest"))
+                    x.get("wrist_backout", True), x.get("perception", "ground_truth"), x.get("look_rule", "latest"),
+                    tuple(x.get("finger_friction", ())))
         if OUT.exists():  # re-read: another diagnosis may have written its entry since this one started
             out["entries"] = json.loads(OUT.read_text())["entries"]
         out["entries"] = [x for x in out["entries"] if key(x) != key(e)] + [e]

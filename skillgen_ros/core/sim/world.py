@@ -34,6 +34,10 @@ from .hand import FrankaHand
 
 TABLE_HALF = tuple(x / 2 for x in TABLE_FULL_SIZE)   # robosuite's 0.8 x 0.8 x 0.05 table (core/robot.py)
 TABLE_CENTER = (*TABLE_CENTER_XY, TABLE_Z - TABLE_HALF[2])
+# Bullet multiplies two bodies' frictions (MuJoCo takes the larger): 1.5 x the objects' 1.0. robosuite's finger pads
+# (panda_gripper.xml) have friction "2 0.05 0.0001"; with 2.0 / 0.05 here Threading D0 made the same 5/40 (docs/tasks.md).
+FINGER_LATERAL_FRICTION = 1.5
+FINGER_SPINNING_FRICTION = 0.01
 
 
 @dataclass
@@ -104,7 +108,8 @@ class SimWorld:
         for i in range(-1, p.getNumJoints(self.robot)):
             p.changeDynamics(self.robot, i, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0)
         for f in self.fingers:
-            p.changeDynamics(self.robot, f, lateralFriction=1.5, spinningFriction=0.01, frictionAnchor=1)
+            p.changeDynamics(self.robot, f, lateralFriction=FINGER_LATERAL_FRICTION,
+                             spinningFriction=FINGER_SPINNING_FRICTION, frictionAnchor=1)
         for j, q in zip(self.arm, Q_HOME):
             p.resetJointState(self.robot, j, q)
         for f in self.fingers:

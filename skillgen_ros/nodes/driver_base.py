@@ -61,7 +61,9 @@ PARAMS = {  # name: (default, description)
     "cameras": (["front", "wrist"], "cameras to render and publish"),
     "camera_hz": (10.0, "periodic camera frames per (sim) second, rounded to a divisor of control_hz; 0 = none "
                         "(frames still come on reset_scene and capture_cameras); may be changed at run time"),
-    "front_width": (128, "front camera width (px)"), "front_height": (128, "front camera height (px)"),
+    "front_width": (0, "front camera width (px); 0 x 0: the task's size (TaskSpec.camera_size: 128x128, "
+                       "Threading 480x360)"),
+    "front_height": (0, "front camera height (px); 0 with front_width 0"),
     "front_fov_deg": (55.0, "front camera vertical field of view"),
     "wrist_width": (96, "wrist camera width (px)"), "wrist_height": (96, "wrist camera height (px)"),
     "wrist_fov_deg": (70.0, "wrist camera vertical field of view"),

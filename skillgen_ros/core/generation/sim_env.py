@@ -42,8 +42,9 @@ class SimEnvConfig:
     plan_timeout: float = 10.0
     images: bool = False  # record 84x84 front and wrist RGB in observations
     image_size: int = 84
-    camera_width: int = 128  # perception camera (estimate mode / cloud collisions): params/sim_driver.yaml's
-    camera_height: int = 128  # front camera, and the datagen graph's depth noise, so the graph and this env
+    camera_width: int = 0  # perception camera (estimate mode / cloud collisions); 0 x 0: the task's camera_size
+    camera_height: int = 0  # (128x128; Threading 480x360), as params/sim_driver.yaml's front camera, and the
+    # datagen graph's depth noise, so the graph and this env
     depth_noise: float = 0.001  # estimate from the same clouds
     video: bool = True  # front view for the run's MP4 (160x120 unless perception renders it; only while capturing)
     # fraction of the Panda's V/A/J limits for planned motions (= graphs.yaml's planner): at full speed

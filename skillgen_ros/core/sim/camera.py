@@ -25,6 +25,8 @@ GL_FROM_OPTICAL = np.diag([1.0, -1.0, -1.0, 1.0])  # OpenGL camera: y up, lookin
 
 @dataclass(frozen=True)
 class CameraConfig:
+    """width = height = 0: the scene's task decides (TaskSpec.camera_size, resolved by SimWorld.reset)."""
+
     name: str
     width: int = 128
     height: int = 128

@@ -11,6 +11,7 @@ kinematics (pinocchio, numba) load on the first motion, so the node starts in un
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,7 @@ from ..robot import GRIPPER_MAX_WIDTH, Q_HOME, TABLE_Z
 from ..tasks import SceneDescription, SceneState, get_task, validate_seed
 from ..tasks.articulation import initial_joint_values
 from ..tasks.shapes import read_obj
+from ..tasks.spec import DEFAULT_CAMERA_SIZE
 from . import camera as cam
 from .commands import TrajectoryCode, TrajectoryResult, validate_gripper, validate_osc_target, validate_trajectory
 
@@ -48,8 +50,10 @@ class MockWorld:
 
     def __init__(self, control_hz: float = 20.0, cameras: tuple = ()):
         self.control_hz = control_hz
-        self.cameras = {c.name: c for c in (c if isinstance(c, cam.CameraConfig) else cam.CameraConfig(str(c))
-                                            for c in cameras)}
+        cfgs = (c if isinstance(c, cam.CameraConfig) else cam.CameraConfig(str(c)) for c in cameras)
+        # a 0 x 0 camera (the task's size on the sim) is the default size here: the mock's clouds are mesh samples
+        self.cameras = {c.name: replace(c, width=DEFAULT_CAMERA_SIZE[0], height=DEFAULT_CAMERA_SIZE[1])
+                        if c.width == 0 else c for c in cfgs}
         self.scene: SceneDescription | None = None
         self.time = 0.0
         self._q = np.array(Q_HOME)

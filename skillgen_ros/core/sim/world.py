@@ -20,7 +20,7 @@ from ..robot import (ARM_JOINTS, CONTROL_HZ, EE_LINK, FINGER_JOINTS, GRIPPER_MAX
                      panda_urdf_path)
 from ..tasks import SceneDescription, SceneState, get_task, validate_seed
 from ..tasks.objects import center_of_mass
-from ..tasks.spec import ObjectSpec
+from ..tasks.spec import DEFAULT_CAMERA_SIZE, ObjectSpec
 from . import articulation
 from . import camera as cam
 from .assets import lowpoly_panda_urdf
@@ -74,7 +74,10 @@ class SimWorld:
         self.substeps = int(round(self.cfg.physics_hz / self.cfg.control_hz))
         self.dt = 1.0 / self.cfg.physics_hz
         self.p = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
-        self.cameras = {c.name: c for c in self.cfg.cameras}
+        if any((c.width == 0) != (c.height == 0) or min(c.width, c.height) < 0 for c in self.cfg.cameras):
+            raise InvalidInputError("a camera's width and height are both > 0, or both 0 (the task's size)",
+                                    "INVALID_PARAMETER")
+        self.cameras = self._sized_cameras(DEFAULT_CAMERA_SIZE)
         self._urdf = lowpoly_panda_urdf() if self.cfg.lowpoly_visuals else panda_urdf_path()
         self.scene: SceneDescription | None = None
         self.time = 0.0
@@ -156,6 +159,7 @@ class SimWorld:
         poses = spec.sample_reset(variant, np.random.default_rng(seed))
         self._build_scene(poses, objects)
         self.task = spec
+        self.cameras = self._sized_cameras(spec.camera_size)
         self._noise_rng = np.random.default_rng([seed, 1])
         self.scene = SceneDescription(task, variant, seed, objects, self.object_poses(), self.joint_positions(),
                                       self.object_joints())
@@ -384,6 +388,10 @@ class SimWorld:
         return hand_wrench(self.p, self.robot, [self.hand_link, *self.fingers], self.ee_pose().position)
 
     # ------------------------------------------------------------------ cameras
+    def _sized_cameras(self, size: tuple[int, int]) -> dict[str, cam.CameraConfig]:
+        """The configured cameras, each 0 x 0 one at `size` (the scene's task's camera_size)."""
+        return {c.name: replace(c, width=size[0], height=size[1]) if c.width == 0 else c for c in self.cfg.cameras}
+
     def camera_pose(self, name: str) -> np.ndarray:
         if name == "front":
             return cam.front_camera_pose()

@@ -27,6 +27,7 @@ MAX_SEED = 2**32 - 1
 SEPARATION_MARGIN = 0.01  # metres between the bounding circles of two sampled objects
 SYMMETRIES = ("none", "z2", "z4", "z_continuous")
 FOOTPRINTS = ("circle", "box")
+DEFAULT_CAMERA_SIZE = (128, 128)  # a task's sim camera (width, height) unless it needs more (TaskSpec.camera_size)
 
 
 @dataclass(frozen=True)
@@ -135,6 +136,8 @@ class TaskSpec:
     `hidden_until`: object id -> index of the first skill before which perception must find it. An object
     that can lie inside a closed container at reset (Coffee Prep's pod in the drawer) is not visible to the
     camera until an earlier skill opens it, so it is not required before then (required_ids).
+    `camera_size`: (width, height) of a sim camera configured as 0 x 0 ("the task's size": the perception
+    camera's default) in this task's scenes. Thin parts need more pixels: Threading's 1 cm needle shaft.
     """
 
     name: str
@@ -147,6 +150,7 @@ class TaskSpec:
     clutter_variants: tuple[str, ...] = ()
     footprint: str = "circle"
     hidden_until: Mapping[str, int] = field(default_factory=dict)
+    camera_size: tuple[int, int] = DEFAULT_CAMERA_SIZE
 
     def __post_init__(self):
         if self.footprint not in FOOTPRINTS:
@@ -156,6 +160,8 @@ class TaskSpec:
             if oid not in {o.id for o in self.objects} or not uses or not 0 < k <= min(uses):
                 raise InvalidInputError(f"task {self.name}: hidden_until[{oid!r}] = {k} must name an object and a skill "
                                         f"index in (0, its first skill {min(uses, default=None)}]")
+        if len(self.camera_size) != 2 or min(self.camera_size) < 1:
+            raise InvalidInputError(f"task {self.name}: camera_size must be (width, height) >= 1, got {self.camera_size}")
 
     def hidden_at(self, skill_index: int) -> frozenset[str]:
         """Objects the camera may not see before skill `skill_index` starts (hidden_until)."""

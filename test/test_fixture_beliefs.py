@@ -1,7 +1,8 @@
-"""What an attempt believes about fixtures (Coffee Prep's drawer and machine): the hand closing on a link does not
-carry the fixture, a fixture keeps its most confident estimate from before its first skill, a held object's start support can be a fixture's part,
-and a look that misses every required object still passes when each was seen before; one that failed as a
-whole (no table, an empty cloud) does not. Both envs (in-process and graph) follow the same rules."""
+"""What an attempt believes about fixtures and untouched objects (grasp.LookBeliefs): the hand closing on a link
+does not carry the fixture, an object no skill has acted on keeps its most confident estimate until its first
+skill (a fixture's is frozen after it), a held object's start support can be a fixture's part, and a look that
+misses every required object still passes when each was seen before; one that failed as a whole (no table, an
+empty cloud) does not. Both envs (in-process and graph) follow the same rules."""
 from __future__ import annotations
 
 import numpy as np

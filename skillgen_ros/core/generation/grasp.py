@@ -116,8 +116,9 @@ class LookBeliefs:
     still at the reset values its model shows, a movable object because nothing moved it. Why the most confident,
     not the latest: a later look is taken from wherever the last skill left the arm, which can hide what breaks an
     object's symmetry (Nut Assembly: the round nut's handle; looks 46 deg off, one octagon step: 24/40 estimated
-    attempts with every look taken, 34/40 with this rule, 33/40 with true poses; docs/perception.md), and a drawer's half-turn explains its cloud nearly as well as the right pose (keeping
-    the first look's flip sent open_drawer to the cabinet's back, IK_FAILED). After its first skill a movable
+    attempts with every look taken, 34/40 with this rule, 33/40 with true poses; docs/perception.md), and a
+    drawer's half-turn explains its cloud nearly as well as the right pose (keeping the first look's flip sent
+    open_drawer to the cabinet's back, IK_FAILED). After its first skill a movable
     object takes every look (it moved), and a fixture's belief is frozen: a look can fit the shut model to an
     opened drawer or lid wrongly (Coffee Prep: 10-23 cm off). An object no skill acts on takes every look."""
 

@@ -34,8 +34,9 @@ from .hand import FrankaHand
 
 TABLE_HALF = tuple(x / 2 for x in TABLE_FULL_SIZE)   # robosuite's 0.8 x 0.8 x 0.05 table (core/robot.py)
 TABLE_CENTER = (*TABLE_CENTER_XY, TABLE_Z - TABLE_HALF[2])
-# Bullet multiplies two bodies' frictions (MuJoCo takes the larger): 1.5 x the objects' 1.0. robosuite's finger pads
-# (panda_gripper.xml) have friction "2 0.05 0.0001"; with 2.0 / 0.05 here Threading D0 made the same 5/40 (docs/tasks.md).
+# Bullet multiplies two bodies' frictions (MuJoCo takes the larger): 1.5 x the objects' 1.0. robosuite's finger
+# pads (panda_gripper.xml) have friction "2 0.05 0.0001"; with 2.0 / 0.05 here Threading D0 made the same 5/40
+# (docs/tasks.md).
 FINGER_LATERAL_FRICTION = 1.5
 FINGER_SPINNING_FRICTION = 0.01
 

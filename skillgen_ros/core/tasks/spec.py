@@ -161,7 +161,8 @@ class TaskSpec:
                 raise InvalidInputError(f"task {self.name}: hidden_until[{oid!r}] = {k} must name an object and a skill "
                                         f"index in (0, its first skill {min(uses, default=None)}]")
         if len(self.camera_size) != 2 or min(self.camera_size) < 1:
-            raise InvalidInputError(f"task {self.name}: camera_size must be (width, height) >= 1, got {self.camera_size}")
+            raise InvalidInputError(f"task {self.name}: camera_size must be (width, height) >= 1, "
+                                    f"got {self.camera_size}")
 
     def hidden_at(self, skill_index: int) -> frozenset[str]:
         """Objects the camera may not see before skill `skill_index` starts (hidden_until)."""

@@ -104,8 +104,16 @@ if ! stamp_ok pkg "$h"; then
 fi
 # 6. The planner's numba kernels into numba's cache (about 10 s once, then under a second): a planner
 #    node still compiling cannot act on Ctrl-C, so a graph stopped right after a fresh clone's first
-#    start was escalated to SIGTERM (CI, 2026-12-06; skillgen_ros/core/planning/warm.py).
-"$VPY" -m skillgen_ros.core.planning.warm >&2
+#    start was escalated to SIGTERM (CI, 2026-12-06; skillgen_ros/core/planning/warm.py). Stamped by what
+#    numba's cache is keyed on (the kernels file's mtime and size; numba's version) and by the cache's index
+#    files, so a no-op re-run stays one and a deleted or stale cache is warmed again.
+PLANNING="$ROOT/skillgen_ros/core/planning"
+numba_key() { { stat -c '%Y %s' "$PLANNING/kernels.py"; cat "$ROOT/requirements.txt"
+                ls "$PLANNING"/__pycache__/*.nbi 2>/dev/null; } | sha256sum | cut -c1-16; }
+if ! stamp_ok numba "$(numba_key)"; then
+  "$VPY" -m skillgen_ros.core.planning.warm >&2
+  stamp_set numba "$(numba_key)"
+fi
 # Activation sets what ROS needs on a pip-only machine (no setup.bash here).
 if ! grep -q skillgen_ros-env "$VENV/bin/activate"; then
   cat >> "$VENV/bin/activate" <<'ACT'

@@ -219,8 +219,8 @@ def train_network(store: Store, cell: str, network: str, dataset: str, methods, 
     tc = TrainConfig(epochs=epochs, steps_per_epoch=a.steps_per_epoch, eval_every=0, device=a.device, seed=a.seed,
                      threads=a.threads)
     _evaluate_unevaluated(store, cell, network, out / f"step_{rec['steps']:06d}.pt", rec["steps"], methods, a)
+    before = _trained_steps(out / "last.pt")  # where the next chunk resumes; then each chunk's own end
     while not rec["finished"] and not (a.budget_minutes and rec["train_seconds"] >= 60 * a.budget_minutes):
-        before = _trained_steps(out / "last.pt")
         t = time.time()
         r = train(TrainRequest(dataset=dataset, output_dir=str(out), network=net, train=tc,
                                resume=(out / "last.pt").exists(), stop_after=a.chunk_steps, progress=False))
@@ -229,6 +229,7 @@ def train_network(store: Store, cell: str, network: str, dataset: str, methods, 
         # timed_steps: the steps this record's train_seconds cover (a network resumed from another run's
         # last.pt under a new --out starts its record at 0 s but at that run's step)
         rec["timed_steps"] += int(r.config.step) - before
+        before = int(r.config.step)
         rec["ms_per_train_step"] = 1000 * rec["train_seconds"] / max(1, rec["timed_steps"])
         kept = out / f"step_{int(r.config.step):06d}.pt"  # every chunk's checkpoint stays: --reevaluate reads them
         _copy(Path(r.last_path), kept)

@@ -9,7 +9,7 @@ Depth noise (optional): z' = z + N(0, (a + b z^2)^2) per pixel, plus dropout (pi
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -36,6 +36,10 @@ class CameraConfig:
     noise_base: float = 0.0      # a in sigma(z) = a + b z^2 (m)
     noise_quadratic: float = 0.0  # b (1/m)
     dropout: float = 0.0         # probability a pixel has no depth
+
+    def sized(self, size: tuple[int, int]) -> "CameraConfig":
+        """This camera at `size` (width, height) if it was configured 0 x 0 (the task's size); else as it is."""
+        return replace(self, width=int(size[0]), height=int(size[1])) if self.width == 0 else self
 
     def intrinsics(self) -> np.ndarray:
         """K in the OpenCV / ROS CameraInfo convention (pixel centres at integer coordinates).

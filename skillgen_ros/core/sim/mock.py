@@ -11,7 +11,6 @@ kinematics (pinocchio, numba) load on the first motion, so the node starts in un
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -52,8 +51,7 @@ class MockWorld:
         self.control_hz = control_hz
         cfgs = (c if isinstance(c, cam.CameraConfig) else cam.CameraConfig(str(c)) for c in cameras)
         # a 0 x 0 camera (the task's size on the sim) is the default size here: the mock's clouds are mesh samples
-        self.cameras = {c.name: replace(c, width=DEFAULT_CAMERA_SIZE[0], height=DEFAULT_CAMERA_SIZE[1])
-                        if c.width == 0 else c for c in cfgs}
+        self.cameras = {c.name: c.sized(DEFAULT_CAMERA_SIZE) for c in cfgs}
         self.scene: SceneDescription | None = None
         self.time = 0.0
         self._q = np.array(Q_HOME)

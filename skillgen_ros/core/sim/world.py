@@ -391,7 +391,7 @@ class SimWorld:
     # ------------------------------------------------------------------ cameras
     def _sized_cameras(self, size: tuple[int, int]) -> dict[str, cam.CameraConfig]:
         """The configured cameras, each 0 x 0 one at `size` (the scene's task's camera_size)."""
-        return {c.name: replace(c, width=size[0], height=size[1]) if c.width == 0 else c for c in self.cfg.cameras}
+        return {c.name: c.sized(size) for c in self.cfg.cameras}
 
     def camera_pose(self, name: str) -> np.ndarray:
         if name == "front":

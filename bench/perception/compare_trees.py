@@ -41,7 +41,8 @@ for task in tasks:
         w.reset(task, spec.variants[0] if mode == "cpu" else spec.variants[i % len(spec.variants)], i)
         truth, models = {k: p.matrix() for k, p in w.object_poses().items()}, B._reset_models(spec)
         for name in (("hi",) if mode == "cpu" else ("hi", "default")):
-            w.cameras["front"] = B._W["cams"][name]
+            # trees before 2026-12-06 render every task's default pass at 128x128 (no B._camera)
+            w.cameras["front"] = B._camera(name, task) if hasattr(B, "_camera") else B._W["cams"][name]
             pts = w.render("front").points_world
             if mode == "cpu" and i == 0:
                 estimate_poses(pts, models, PerceptionParams(), FRONT_EYE)  # warm the models' caches

@@ -4,7 +4,8 @@ For each task, --scenes scenes (200; --quick: 12) spread evenly over its variant
 clutter where the task has it), seeds 0..N-1, rendered by core.sim at 640x480 with the depth-noise
 model on (sigma = a + b z^2, plus dropout). Per object: translation error, symmetry-aware rotation
 error, ADD-S, and whether the estimate landed on a different object (wrong identity), at 640x480
-and at the sim camera's default resolution. Latency: per frame CPU and wall time of
+and at the sim camera's default resolution for the task (TaskSpec.camera_size: 128x128, Threading
+480x360). Latency: per frame CPU and wall time of
 estimate_poses with OMP/BLAS threads pinned to 1, recorded in the accuracy pass (pool workers
 compete for the cores) and in a separate single-process pass of 25 scenes per task
 (latency_single_process; the latency goal is judged on this one). Truth is SimWorld.object_poses() (the objects' mesh frames).
@@ -47,13 +48,17 @@ def _init(noise: tuple[float, float, float]):
     from skillgen_ros.core.sim.camera import CameraConfig
     a, b, drop = noise
     hi = CameraConfig("front", 640, 480, noise_base=a, noise_quadratic=b, dropout=drop)
-    d = CameraConfig("front")
-    lo = CameraConfig("front", d.width, d.height, noise_base=a, noise_quadratic=b, dropout=drop)
+    lo = CameraConfig("front", 0, 0, noise_base=a, noise_quadratic=b, dropout=drop)  # 0 x 0: the task's size
     _W["world"] = SimWorld(cameras=(hi,))
     _W["cams"] = {"hi": hi, "default": lo}
     import open3d as o3d
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
-    _W["default_res"] = (d.width, d.height)
+
+
+def _camera(name: str, task: str):
+    """The pass's camera for `task`: 640x480, or the sim's default for that task (its camera_size)."""
+    from skillgen_ros.core.tasks import get_task
+    return _W["cams"][name].sized(get_task(task).camera_size)
 
 
 def _evaluate(res, truth: dict, models: dict) -> list[dict]:
@@ -93,7 +98,7 @@ def _scene(job: tuple) -> dict:
     params = PerceptionParams()
     out = {"task": task, "variant": variant, "seed": seed}
     for name in ("hi", "default"):
-        w.cameras["front"] = _W["cams"][name]  # same camera pose, other resolution
+        w.cameras["front"] = _camera(name, task)  # same camera pose, other resolution
         pts = w.render("front").points_world
         estimate_poses(pts, models, params, FRONT_EYE) if seed == 0 else None  # warm caches (grids)
         c, t = time.process_time(), time.perf_counter()
@@ -129,7 +134,7 @@ def _latency(task: str, n: int, noise) -> dict:
     models, params = _reset_models(spec), PerceptionParams()
     out = {}
     for name in ("hi", "default"):
-        w.cameras["front"] = _W["cams"][name]
+        w.cameras["front"] = _camera(name, task)
         cpu, wall = [], []
         for i in range(n):
             w.reset(task, spec.variants[i % len(spec.variants)], 10_000 + i)
@@ -200,8 +205,6 @@ def main(argv=None) -> int:
     lat_all = {k: float(np.median([latency[t][res][k] for t in TASK_NAMES]))
                for res in ("hi",) for k in ("cpu_median_ms", "wall_median_ms")}
 
-    from skillgen_ros.core.sim.camera import CameraConfig
-    d = CameraConfig("front")
     report = {"overall": {k: _stats(frames, k) for k in ("hi", "default", "baseline")}, "per_task": {}, "per_variant": {}}
     for task in TASK_NAMES:
         fr = [f for f in frames if f["task"] == task]
@@ -235,7 +238,7 @@ def main(argv=None) -> int:
         "command": " ".join(["python", "bench/perception/run.py"] + (argv if argv is not None else sys.argv[1:])),
         "machine": machine_info(threads_per_frame=os.environ.get("OMP_NUM_THREADS")),
         "config": {"scenes_per_task": n, "tasks": list(TASK_NAMES), "resolution_hi": [640, 480],
-                   "resolution_default": [d.width, d.height], "depth_noise_sigma": "a + b z^2",
+                   "resolution_default": {t: list(get_task(t).camera_size) for t in TASK_NAMES}, "depth_noise_sigma": "a + b z^2",
                    "noise_a_m": args.noise[0], "noise_b_per_m": args.noise[1], "dropout": args.noise[2],
                    "baseline": "open3d FPFH+RANSAC + 6-DOF point-to-plane ICP, every "
                                f"{args.baseline_every}th scene", "workers": args.workers, "wall_s": wall},

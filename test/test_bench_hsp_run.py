@@ -162,7 +162,9 @@ def test_parallel_shards_are_fixed_attempt_ranges_sized_by_the_rate_so_far():
     assert next_batch([], 1000, 100, 2, 5) == [(0, size, 0), (size, size, 0)]
     done = [{"attempts": 400, "successes": 100}, {"attempts": 400, "successes": 100}]  # 25% so far
     assert next_batch(done, 1000, 100, 2, 5) == [(800, 400, 0), (1200, 400, 0)]
-    assert next_batch(done, 250, 100, 2, 5) == [(800, 200, 0)]  # 50 to go: one shard of ~50 successes
+    # 50 to go at 25%: ~200 attempts, split over both workers (one shard would leave a core idle)
+    assert next_batch(done, 250, 100, 2, 5) == [(800, 100, 0), (900, 100, 0)]
+    assert next_batch(done, 201, 100, 2, 5) == [(800, 2, 0), (802, 2, 0)]  # 1 to go
     assert next_batch(done, 200, 100, 2, 5) == []
 
 
@@ -239,3 +241,29 @@ def test_a_network_resumed_under_a_new_record_times_only_the_steps_it_trained(tm
     assert [c[0] for c in calls] == [18000, 22500]
     assert (rec["steps"], rec["timed_steps"], rec["train_seconds"]) == (22500, 9000, 200.0)
     assert abs(rec["ms_per_train_step"] - 1000 * 200 / 9000) < 1e-9
+
+
+def test_a_barren_tail_batch_retries_and_only_a_long_barren_run_gives_up(tmp_path, monkeypatch):
+    """A tail batch of a few attempts may have no success; generation goes on until `shard * cap`
+    attempts in a row had none (it used to give up on the first empty batch, however small)."""
+    import pytest
+
+    from bench.hsp import shards as S
+    from skillgen_ros.core.generation import sim_env
+
+    monkeypatch.setattr(sim_env, "SimGenerationEnv", lambda *a, **k: SimpleNamespace(close=lambda: None))
+    plan = iter([5, 0, 1])  # successes of successive shards: 5 of 6 needed, then a barren tail, then the last one
+
+    def fake_shard(job, env=None, demos=None):
+        n = next(plan)
+        return {"dir": job.out, "first_index": job.first, "attempts": max(n, 1) * 2, "successes": n}
+
+    monkeypatch.setattr(S, "generate_shard", fake_shard)
+    job_of = lambda first, n, want, out: S.ShardJob("Square", "D0", "skillgen", False, 0, first, n, want, out)  # noqa: E731
+    recs = []
+    S.generate(recs, tmp_path, job_of, demos=6, shard=5, workers=1, cap_factor=5, save=lambda: None)
+    assert [r["successes"] for r in recs] == [5, 0, 1]
+
+    plan = iter([0] * 30)  # nothing ever succeeds: give up after shard * cap = 25 barren attempts
+    with pytest.raises(SystemExit, match="no successes in the last"):
+        S.generate([], tmp_path, job_of, demos=6, shard=5, workers=1, cap_factor=5, save=lambda: None)

@@ -83,7 +83,8 @@ def _regenerate(shards: list[dict], job_of, run) -> None:
 
 def next_batch(shards: list[dict], demos: int, shard: int, workers: int, cap_factor: int) -> list[tuple[int, int, int]]:
     """(first attempt, attempts, want) of the next shards: one shard stopping at `shard` successes,
-    or `workers` fixed ranges sized to give about `shard` successes each at the rate so far."""
+    or `workers` fixed ranges sized to give about `shard` successes each at the rate so far (the last
+    batch: together about the successes still needed, so no worker idles through the tail)."""
     done = sum(s["successes"] for s in shards)
     first = sum(s["attempts"] for s in shards)
     need = demos - done
@@ -95,7 +96,9 @@ def next_batch(shards: list[dict], demos: int, shard: int, workers: int, cap_fac
     rate = done / first if done else PRIOR_RATE  # first = the attempts so far
     size = max(1, math.ceil(want / max(rate, 1e-3)))
     count = min(workers, math.ceil(need / max(1, size * rate)))
-    return [(first + k * size, size, 0) for k in range(max(1, count))]
+    if count < workers:  # the tail (fewer than a shard per worker to go): its attempts split over every worker
+        size, count = max(1, math.ceil(need / max(rate, 1e-3) / workers)), workers
+    return [(first + k * size, size, 0) for k in range(count)]
 
 
 def demo_indices(paths) -> list[int]:
@@ -130,15 +133,18 @@ def generate(shards: list[dict], root: Path, job_of, demos: int, shard: int, wor
 
     try:
         _regenerate(shards, job_of, run)
+        barren = 0  # attempts since the last success: a tail batch of a few attempts may well have none
         while batch := next_batch(shards, demos, shard, workers, cap_factor):
             jobs = [job_of(first, n, want, str(root / f"shard_{len(shards) + k:03d}"))
                     for k, (first, n, want) in enumerate(batch)]
             for rec in run(jobs):
                 shards.append(rec)
                 save()
-            if sum(s["successes"] for s in shards[-len(jobs):]) == 0:
-                raise SystemExit(f"{jobs[0].task} {jobs[0].method}: no successes in "
-                                 f"{sum(j.attempts for j in jobs)} attempts; giving up")
+            got = sum(s["successes"] for s in shards[-len(jobs):])
+            barren = 0 if got else barren + sum(s["attempts"] for s in shards[-len(jobs):])
+            if barren >= shard * cap_factor:
+                raise SystemExit(f"{jobs[0].task} {jobs[0].method}: no successes in the last {barren} "
+                                 "attempts; giving up")
     finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)

@@ -259,7 +259,10 @@ def test_a_barren_tail_batch_retries_and_only_a_long_barren_run_gives_up(tmp_pat
         return {"dir": job.out, "first_index": job.first, "attempts": max(n, 1) * 2, "successes": n}
 
     monkeypatch.setattr(S, "generate_shard", fake_shard)
-    job_of = lambda first, n, want, out: S.ShardJob("Square", "D0", "skillgen", False, 0, first, n, want, out)  # noqa: E731
+
+    def job_of(first, n, want, out):
+        return S.ShardJob("Square", "D0", "skillgen", False, 0, first, n, want, out)
+
     recs = []
     S.generate(recs, tmp_path, job_of, demos=6, shard=5, workers=1, cap_factor=5, save=lambda: None)
     assert [r["successes"] for r in recs] == [5, 0, 1]

@@ -123,6 +123,8 @@ def test_seeded_attempts_produce_a_valid_robomimic_dataset(graph, tmp_path):
         n = sum(1 for _ in r.messages(connections=[c for c in r.connections if c.topic == "/osc_target"]))
     assert 0 < n < 450, n  # one attempt's skill steps, not three
     _check_session_bag(Path(res.bag_path))
+    # the window's own attempt index, published after the recorder resumed (it once went out while paused)
+    assert [m.data for m in decode_all(Path(res.bag_path))["/run/attempt"]] == [1]
     assert (out / "attempts.mp4").stat().st_size > 0 and (out / "report.html").exists()
     assert 'href="bag"' in (out / "report.html").read_text() and list((out / "clips").glob("attempt_*.mp4"))
     assert _driver_camera_hz(dom) == 0.0, "datagen must put the driver's camera rate back after filming"

@@ -140,3 +140,38 @@ def test_keys_move_the_ee_and_toggle_the_gripper(ros_domain, driver):
             proc.wait(10)
         os.close(master)
         w.close()
+
+
+@pytest.mark.mock_driver(initial_task="Square", publish_points=False)
+def test_the_teleop_holds_the_robot_until_osc_target_has_its_subscribers(ros_domain, mock_driver, tmp_path):
+    """`demos record` starts the teleop with min_subscribers 2 (driver + recorder): until the recorder
+    subscribes, keys are refused with the reason and no target goes out, so the bag misses no command."""
+    w = _Watcher()  # with the driver: 2 subscribers of osc_target, one short of 3
+    log = tmp_path / "teleop.log"
+    master, slave = pty.openpty()
+    with open(log, "w") as f:
+        proc = subprocess.Popen([str(VENV_BIN / "teleop"), "--ros-args", "--params-file",
+                                 str(REPO / "params/teleop.yaml"), "-p", "min_subscribers:=3"],
+                                stdin=slave, stdout=f, stderr=subprocess.STDOUT, env=node_env(ros_domain), cwd=REPO,
+                                text=True)
+    os.close(slave)
+    third = None
+    try:
+        assert wait_for(lambda: w.ee is not None and not termios.tcgetattr(master)[3] & termios.ICANON, 60), \
+            "teleop did not start"
+        os.write(master, b"w")
+        assert wait_for(lambda: "of 3 subscribers (is the recorder up?)" in log.read_text(), 30), log.read_text()
+        assert w.targets == 0, "the teleop drove the robot before osc_target had its subscribers"
+        third = _Watcher()  # the third subscriber: now the teleop takes the robot
+        assert wait_for(lambda: w.targets > 0, 30), log.read_text()
+        os.write(master, b"q")
+        proc.wait(10)
+        assert proc.returncode == 0, log.read_text()
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(2)
+            proc.wait(10)
+        os.close(master)
+        w.close()
+        if third is not None:
+            third.close()

@@ -238,7 +238,8 @@ def main(argv=None) -> int:
         "command": " ".join(["python", "bench/perception/run.py"] + (argv if argv is not None else sys.argv[1:])),
         "machine": machine_info(threads_per_frame=os.environ.get("OMP_NUM_THREADS")),
         "config": {"scenes_per_task": n, "tasks": list(TASK_NAMES), "resolution_hi": [640, 480],
-                   "resolution_default": {t: list(get_task(t).camera_size) for t in TASK_NAMES}, "depth_noise_sigma": "a + b z^2",
+                   "resolution_default": {t: list(get_task(t).camera_size) for t in TASK_NAMES},
+                   "depth_noise_sigma": "a + b z^2",
                    "noise_a_m": args.noise[0], "noise_b_per_m": args.noise[1], "dropout": args.noise[2],
                    "baseline": "open3d FPFH+RANSAC + 6-DOF point-to-plane ICP, every "
                                f"{args.baseline_every}th scene", "workers": args.workers, "wall_s": wall},

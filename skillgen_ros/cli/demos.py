@@ -165,7 +165,9 @@ def record(task: str, seed: int, out: Path, variant: str = "D0", keep_failed: bo
               f"to grasp: docs/teleop.md (q quits and judges the demo); cameras: `skillgen view` in another "
               f"terminal, Foxglove layout docs/foxglove/teleop.json",
               flush=True)
-        teleop = subprocess.run([_exe("teleop"), "--ros-args", "-p", f"task:={task}"], env=env)  # this terminal
+        # the robot waits for the recorder (and the driver) on osc_target: a bag from the demo's first command
+        teleop = subprocess.run([_exe("teleop"), "--ros-args", "-p", f"task:={task}", "-p", "min_subscribers:=2"],
+                                env=env)  # this terminal
     except KeyboardInterrupt:
         teleop = None
     finally:

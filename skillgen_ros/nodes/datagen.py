@@ -213,10 +213,10 @@ class DatagenNode(Node):
 
         window = (int(g.record_first), int(g.record_first) + int(g.record_count)) if g.record_count else None
 
-        def before_attempt(k: int) -> None:  # say which attempt runs; record only the chosen range of attempts
-            self.env.state.attempt(req.first_index + k)
-            if bag and window:
+        def before_attempt(k: int) -> None:  # record only the chosen range of attempts; say which attempt runs
+            if bag and window:  # first: published while the recorder is paused, the index would not be in the bag
                 self._recorder_call(self.rec_resume if window[0] <= k < window[1] else self.rec_pause)
+            self.env.state.attempt(req.first_index + k)
 
         try:
             if distributed:

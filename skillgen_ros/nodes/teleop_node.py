@@ -40,6 +40,8 @@ class Teleop(Node):
             "object_poses_topic": ("sim/ground_truth/object_poses",
                                    "object poses for the status line (perception/object_poses on a real robot)"),
             "status_hz": (5.0, "status line rate on the terminal; 0 = no status line"),
+            "min_subscribers": (0, "hold the robot until osc_target has this many subscribers (`demos record`: "
+                                   "the driver and the recorder, so the bag has the demo from its first command)"),
         }
         for name, (default, desc) in p.items():
             self.declare_parameter(name, default, ParameterDescriptor(description=desc))
@@ -48,6 +50,7 @@ class Teleop(Node):
         self._lin, self._ang = float(g("linear_step")), float(g("angular_step"))
         self._lead, self._frame = float(g("max_lead")), str(g("frame_id"))
         self._sm_lin, self._sm_ang = float(g("spacemouse_max_linear")), float(g("spacemouse_max_angular"))
+        self._min_subs = int(g("min_subscribers"))
         self._lock = threading.Lock()
         self._target: Target | None = None
         self._ee: np.ndarray | None = None
@@ -122,13 +125,16 @@ class Teleop(Node):
             ee = None if self._ee is None else self._ee.copy()
             grip0 = self._gripper_cmd
         if self._target is None:
-            if ee is None:  # no robot yet: honour quit, ignore motion keys (no typing ahead)
+            subs = self._pub.get_subscription_count()
+            if ee is None or subs < self._min_subs:  # no robot (or recorder) yet: honour quit, ignore motion keys
                 if any(k in QUIT_KEYS for k in keys):
                     self._restore_tty()
                     rclpy.try_shutdown()
                 elif keys and not self._warned:
                     self._warned = True
-                    self.get_logger().warning("no ee_pose yet (is the driver up?); keys ignored until it is")
+                    why = ("no ee_pose yet (is the driver up?)" if ee is None else
+                           f"osc_target has {subs} of {self._min_subs} subscribers (is the recorder up?)")
+                    self.get_logger().warning(f"{why}; keys ignored until it is")
                 return
             self._target = Target(ee[:3], ee[3:], grip0 if grip0 is not None and grip0 > 0 else -1.0)
         t = self._target

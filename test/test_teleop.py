@@ -159,8 +159,11 @@ def test_the_teleop_holds_the_robot_until_osc_target_has_its_subscribers(ros_dom
     try:
         assert wait_for(lambda: w.ee is not None and not termios.tcgetattr(master)[3] & termios.ICANON, 60), \
             "teleop did not start"
-        os.write(master, b"w")
-        assert wait_for(lambda: "of 3 subscribers (is the recorder up?)" in log.read_text(), 30), log.read_text()
+        def refused() -> bool:  # a key until it is refused for the subscribers (the EE may arrive first)
+            os.write(master, b"w")
+            return "fewer than 3 subscribers (is the recorder up?)" in log.read_text()
+
+        assert wait_for(refused, 30), log.read_text()
         assert w.targets == 0, "the teleop drove the robot before osc_target had its subscribers"
         third = _Watcher()  # the third subscriber: now the teleop takes the robot
         assert wait_for(lambda: w.targets > 0, 30), log.read_text()

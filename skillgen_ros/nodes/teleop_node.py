@@ -56,7 +56,7 @@ class Teleop(Node):
         self._ee: np.ndarray | None = None
         self._gripper_cmd: float | None = None
         self._keys: list[str] = []
-        self._warned = False
+        self._warned = ""  # the last reason keys were ignored for
         self._pub = self.create_publisher(OscTarget, "osc_target", 10)
         self.create_subscription(PoseStamped, "ee_pose", self._on_ee, 10)
         self.create_subscription(GripperState, "gripper_state", self._on_gripper, 10)
@@ -130,11 +130,12 @@ class Teleop(Node):
                 if any(k in QUIT_KEYS for k in keys):
                     self._restore_tty()
                     rclpy.try_shutdown()
-                elif keys and not self._warned:
-                    self._warned = True
+                elif keys:
                     why = ("no ee_pose yet (is the driver up?)" if ee is None else
-                           f"osc_target has {subs} of {self._min_subs} subscribers (is the recorder up?)")
-                    self.get_logger().warning(f"{why}; keys ignored until it is")
+                           f"osc_target has fewer than {self._min_subs} subscribers (is the recorder up?)")
+                    if why != self._warned:  # each reason once
+                        self._warned = why
+                        self.get_logger().warning(f"{why}; keys ignored until it is")
                 return
             self._target = Target(ee[:3], ee[3:], grip0 if grip0 is not None and grip0 > 0 else -1.0)
         t = self._target

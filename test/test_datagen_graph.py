@@ -122,9 +122,9 @@ def test_seeded_attempts_produce_a_valid_robomimic_dataset(graph, tmp_path):
     with AnyReader([Path(res.bag_path)]) as r:
         n = sum(1 for _ in r.messages(connections=[c for c in r.connections if c.topic == "/osc_target"]))
     assert 0 < n < 450, n  # one attempt's skill steps, not three
-    _check_session_bag(Path(res.bag_path))
+    got = _check_session_bag(Path(res.bag_path))
     # the window's own attempt index, published after the recorder resumed (it once went out while paused)
-    assert [m.data for m in decode_all(Path(res.bag_path))["/run/attempt"]] == [1]
+    assert [m.data for m in got["/run/attempt"]] == [1]
     assert (out / "attempts.mp4").stat().st_size > 0 and (out / "report.html").exists()
     assert 'href="bag"' in (out / "report.html").read_text() and list((out / "clips").glob("attempt_*.mp4"))
     assert _driver_camera_hz(dom) == 0.0, "datagen must put the driver's camera rate back after filming"
@@ -147,9 +147,10 @@ def test_seeded_attempts_produce_a_valid_robomimic_dataset(graph, tmp_path):
     assert Path(res.report_path).exists()
 
 
-def _check_session_bag(bag: Path) -> None:
+def _check_session_bag(bag: Path) -> dict:
     """What Foxglove's 3D panel needs, decoded by third-party readers: every link, object, camera
-    and planner goal frame connects to world; the robot model, object models, run state and a few clouds."""
+    and planner goal frame connects to world; the robot model, object models, run state and a few clouds.
+    Returns the decoded messages by topic."""
     got = decode_all(bag)
     for topic in ("/tf", "/tf_static", "/robot_description", "/scene/object_markers", "/planner/path_markers",
                   "/camera/front/points", "/run/stage", "/run/skill", "/run/attempt"):
@@ -160,6 +161,7 @@ def _check_session_bag(bag: Path) -> None:
     assert frames <= set(parents) and unconnected(set(parents), parents) == [], sorted(parents)
     assert {m.header.frame_id for m in got["/scene/object_markers"][-1].markers[1:]} == {"square_nut", "square_peg"}
     assert {m.data for m in got["/run/stage"]} >= {"motion", "skill"}
+    return got
 
 
 def _one_recorded_attempt(graph, out: Path, task: str, objects: tuple[str, ...]) -> dict:

@@ -86,6 +86,16 @@ class _Watcher:
         self.ctx.try_shutdown()
 
 
+def _stop(proc, master: int, *watchers: _Watcher) -> None:
+    """A test's teardown: Ctrl-C the teleop if it still runs, close its terminal and the watchers."""
+    if proc.poll() is None:
+        proc.send_signal(2)
+        proc.wait(10)
+    os.close(master)
+    for w in watchers:
+        w.close()
+
+
 @pytest.fixture(params=["mock_driver", "sim_driver"])
 def driver(request):
     """The plugin's mock_driver / sim_driver fixture, ready, in the Square scene (markers below)."""
@@ -135,11 +145,7 @@ def test_keys_move_the_ee_and_toggle_the_gripper(ros_domain, driver):
         assert "| EE " in out and "gripper 0.0" in out and "next square_nut handle" in out, out
         assert "key w (+x)" in out and "key f (-z)" in out and "key space (gripper)" in out, out
     finally:
-        if proc.poll() is None:
-            proc.send_signal(2)
-            proc.wait(10)
-        os.close(master)
-        w.close()
+        _stop(proc, master, w)
 
 
 @pytest.mark.mock_driver(initial_task="Square", publish_points=False)
@@ -171,10 +177,4 @@ def test_the_teleop_holds_the_robot_until_osc_target_has_its_subscribers(ros_dom
         proc.wait(10)
         assert proc.returncode == 0, log.read_text()
     finally:
-        if proc.poll() is None:
-            proc.send_signal(2)
-            proc.wait(10)
-        os.close(master)
-        w.close()
-        if third is not None:
-            third.close()
+        _stop(proc, master, w, *([third] if third is not None else []))

@@ -93,3 +93,26 @@ def test_diagnose_records_each_looks_errors_for_its_skill_without_the_held_objec
     ((skill, errs),) = looks
     assert skill == 2 and set(errs) == {"nut"}  # the held peg's belief is not a look at it
     assert errs["nut"] == pytest.approx((10.0, 45.0))
+
+
+def test_diagnose_tally_groups_attempts_by_the_last_skills_demo_and_the_failing_skill():
+    from types import SimpleNamespace
+
+    from bench.datagen.attempt_tally import Tally
+
+    def result(ok, demos, reason="OK", message="", used=()):
+        return SimpleNamespace(success=ok, source_demos=demos, reason=SimpleNamespace(value=reason),
+                               message=message, initiation_candidates_used=list(used), episode=None)
+
+    t = Tally("Square", stages=False)
+    touching = [1]
+    t.add(result(True, [0, 3]), None, None, touching)
+    t.add(result(False, [1, 3], "TASK_FAILED", "nut not on its peg", used=(1, 1)), None, None, [0])
+    t.add(result(False, [2], "PLAN_FAILED", "START_IN_COLLISION", used=(1,)), None, None, touching)
+    s = t.summary()
+    assert s["successes"] == 1 and s["successful_indices"] == [0]
+    assert s["by_source_demo"] == {"2": {"successes": 0, "attempts": 1}, "3": {"successes": 1, "attempts": 2}}
+    assert s["failures_at_skill"] == {"PLAN_FAILED at skill 0": 1, "TASK_FAILED at skill 1": 1}
+    assert s["failures"] == {"TASK_FAILED: nut not on its peg": 1, "PLAN_FAILED: START_IN_COLLISION": 1}
+    assert t.touched == [2, 1]  # two attempts touched, one of them succeeded
+    assert s["attempts_dragging"] == 0 and "task_failed_stages" not in s

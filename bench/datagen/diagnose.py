@@ -34,6 +34,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+from bench.datagen.attempt_tally import DRAGGED, STAGES, Tally  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 from skillgen_ros.core.planning.start_repair import START_REPAIRS  # noqa: E402
 
@@ -115,52 +116,6 @@ def _look_summary(rows: list[tuple[bool, list[tuple[int, dict]]]], skills) -> di
     return out
 
 
-LIFTED, LID_OPENED = 0.05, 1.3   # m above its start; rad (the demos swing the lid to 1.55-1.8 rad)
-
-
-def _coffee_prep_stage(obs: dict) -> str:
-    """How far a failed Coffee Prep attempt got, from its recorded true object poses and joint values."""
-    from skillgen_ros.core.tasks import coffee as C
-    from skillgen_ros.core.tasks import coffee_prep as CP
-
-    mug, pod = np.asarray(obs["mug_pose"])[:, 2], np.asarray(obs["coffee_pod_pose"])[:, 2]
-    lid, slide = np.asarray(obs["coffee_machine_joints"])[:, 0], np.asarray(obs["drawer_joints"])[:, 0]
-    if mug.max() - mug[0] < LIFTED:
-        return "1 mug not lifted"
-    if lid.max() < LID_OPENED:
-        return "2 lid never opened"
-    if slide.min() > CP.DRAWER_OPEN:
-        return "3 drawer not opened"
-    if pod.max() - pod[0] < LIFTED:
-        return "4 pod not lifted"
-    if lid[-1] > C.LID_CLOSED_TOLERANCE:
-        return "5 pod carried, lid not closed"
-    return "6 lid closed, pod or mug not in place"
-
-
-def _coffee_stage(obs: dict) -> str:
-    """How far a failed Coffee attempt got, at its last step: which part of coffee.py's `_check_pod` /
-    `_check_lid` fails, with the pod's x-y miss from the holder centre (allowed: 5.2 mm) in 5 mm bins."""
-    from scipy.spatial.transform import Rotation as R
-
-    from skillgen_ros.core.tasks import coffee as C
-
-    pod, machine = np.asarray(obs["coffee_pod_pose"], float), np.asarray(obs["coffee_machine_pose"], float)
-    lid = np.asarray(obs["coffee_machine_joints"], float)[:, 0]
-    if pod[:, 2].max() - pod[0, 2] < LIFTED:
-        return "1 pod not lifted"
-    holder = R.from_quat(machine[-1, 3:]).apply(C.coffee_machine().keypoint("pod_holder")) + machine[-1, :3]
-    miss = C.pod_miss(holder, pod[-1])
-    if miss > C.POD_MISS_ALLOWED:
-        return f"2 pod beside the holder, x-y miss {5 * int(miss * 200)}-{5 * int(miss * 200) + 5} mm"
-    if C.pod_below_holder(holder, pod[-1]):
-        return "3 pod below the holder's bottom"
-    if lid[-1] >= C.LID_CLOSED_TOLERANCE:
-        deg = 15 * int(np.degrees(lid[-1]) // 15)
-        return f"4 pod in the holder, lid open {deg}-{deg + 15} deg at the end"
-    return "5 lid closed, pod on the holder's rim (top above the lid's underside)"
-
-
 def _set_pod_mass(task: str, kg: float) -> None:
     """Build the Coffee pod with another mass (the spec is cached: set before the task is first built)."""
     from skillgen_ros.core.tasks import coffee as C
@@ -172,45 +127,6 @@ def _set_pod_mass(task: str, kg: float) -> None:
     C.coffee_pod.cache_clear()
     if [o.mass for o in get_task(task).objects if o.id == "coffee_pod"] != [kg]:
         raise SystemExit("the Coffee task was built before --pod-mass could apply")
-
-
-STAGES = {"CoffeePreparation": _coffee_prep_stage, "Coffee": _coffee_stage}   # tasks whose failures --stages can place
-DRAGGED = 0.02  # m: an object that slid this far across the table before it was first lifted was dragged
-
-
-def _drags(ep, spec) -> dict[str, float]:
-    """Per object that a transit skill grasps and a transfer skill then carries: how far it slid in x-y from
-    its grasp skill's first step until it first rose 1 cm above where it was then (to the attempt's end if
-    it never rose). A carried object slides ~0; one pulled along the table by the next segment, cm."""
-    carried = {getattr(sk, "attached_object", None) for sk in spec.skills if sk.mode == "transfer"}
-    skill_of = np.asarray(ep.labels["skill_index"])
-    out = {}
-    for sk in spec.skills:
-        key = f"{sk.object_id}_pose"
-        steps = np.flatnonzero(skill_of == sk.index)
-        if sk.mode != "transit" or sk.object_id not in carried or key not in ep.obs or not steps.size:
-            continue
-        p = np.asarray(ep.obs[key], float)[steps[0]:, :3]
-        risen = np.flatnonzero(p[:, 2] > p[0, 2] + 0.01)
-        before = p[: risen[0] + 1] if risen.size else p
-        out[sk.object_id] = float(np.linalg.norm(before[:, :2] - p[0, :2], axis=1).max())
-    return out
-
-
-AT_LIMIT = np.radians(1.0)  # a joint within this of its position limit is on it
-
-
-def _joints_at_limit(ep) -> list[int]:
-    """The arm joints (0-based, panda_joint1 = 0) that reached within 1 deg of a position limit during any
-    skill's replay (mp_step == 0): a rigidly transformed skill whose wrist turn runs past panda_joint7's range
-    leaves the hand short of its targets."""
-    from skillgen_ros.core.robot import Q_LOWER, Q_UPPER
-
-    q = np.asarray(ep.obs["robot0_joint_pos"], float)[np.asarray(ep.labels["mp_step"]) == 0]
-    if not len(q):
-        return []
-    hit = (q <= Q_LOWER + AT_LIMIT) | (q >= Q_UPPER - AT_LIMIT)
-    return [int(j) for j in np.flatnonzero(hit.any(axis=0))]
 
 
 def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, profile: str,
@@ -239,18 +155,10 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
     cfg = RunRequest(task=task, variant=variant, method=method, attempts=attempts, seed=seed, profile=profile,
                      action_noise=noise, augment=augment, output_dir="/nonexistent").config()
     env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, video=False))
-    by_demo: dict[int, list[int]] = defaultdict(lambda: [0, 0])
-    reasons: Counter = Counter()
-    at_skill: Counter = Counter()  # failure reason and the last skill whose initiation was planned
-    reached: Counter = Counter()
+    tally = Tally(task, stages)
     touching = _count_touches(env, touch) if touch else None
     repairs = _count_start_repairs(env)
     looks = _record_look_errors(env) if perception == "estimate" else None
-    look_rows: list[tuple[bool, list]] = []
-    touched = [0, 0]  # attempts touching `touch`, and how many of them succeeded
-    drags: dict[str, list[float]] = defaultdict(list)
-    at_limit: dict[str, list[int]] = defaultdict(lambda: [0, 0])  # joint -> attempts on its limit, successes
-    dragged = [0, 0]  # attempts dragging an object, and how many of them succeeded
     t0 = time.perf_counter()
     try:
         for i in range(attempts):
@@ -258,56 +166,53 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
                 touching[0] = 0
             if looks is not None:
                 looks.clear()
-            r = run_attempt(env, demos, spec, method, i, seed, cfg)
-            look_rows.append((bool(r.success), list(looks) if looks is not None else []))
-            if touching and touching[0] > 0:
-                touched[0] += 1
-                touched[1] += int(r.success)
-            moved = _drags(r.episode, spec) if r.episode is not None else {}
-            for k, v in moved.items():
-                drags[k].append(v)
-            if any(v > DRAGGED for v in moved.values()):
-                dragged[0] += 1
-                dragged[1] += int(r.success)
-            for j in _joints_at_limit(r.episode) if r.episode is not None else []:
-                at_limit[f"panda_joint{j + 1}"][0] += 1
-                at_limit[f"panda_joint{j + 1}"][1] += int(r.success)
-            d = int(r.source_demos[-1]) if r.source_demos else -1
-            by_demo[d][0] += int(r.success)
-            by_demo[d][1] += 1
-            if not r.success:
-                reasons[f"{r.reason.value}: {r.message[:80]}"] += 1
-                if r.initiation_candidates_used:
-                    at_skill[f"{r.reason.value} at skill {len(r.initiation_candidates_used) - 1}"] += 1
-                if stages and r.reason.value == "TASK_FAILED":
-                    reached[STAGES[task](r.episode.obs)] += 1
+            tally.add(run_attempt(env, demos, spec, method, i, seed, cfg), spec, looks, touching)
     finally:
         env.close()
         mg.MIMICGEN_SPECS.clear()
         mg.MIMICGEN_SPECS.update(specs_before)
-    n_ok = sum(v[0] for v in by_demo.values())
-    extra = {"touch": touch, "attempts_touching": touched[0], "successes_touching": touched[1]} if touch else {}
-    if stages:
-        extra["task_failed_stages"] = dict(sorted(reached.items()))
+    extra = {"touch": touch, "attempts_touching": tally.touched[0], "successes_touching": tally.touched[1]} if touch else {}
     if mimicgen_offsets:
         extra["mimicgen_offsets"] = list(mimicgen_offsets)
-    extra["drag_measure"] = "from the grasp skill's first step"   # entries without it measured from step 0
-    extra["drag_m"] = {k: {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "n": len(v)}
-                       for k, v in drags.items()}
-    extra["attempts_dragging"], extra["successes_dragging"] = dragged
-    extra["joint_at_limit_in_a_skill"] = {k: {"attempts": v[0], "successes": v[1]} for k, v in sorted(at_limit.items())}
     extra["plans"] = {k: repairs[k] for k in ("plans", "START_IN_COLLISION", *START_REPAIRS)}
     if looks is not None:
         extra["perception"] = perception
-        extra["look_errors"] = _look_summary(look_rows, spec.skills)
-    extra["successful_indices"] = [i for i, (ok, _) in enumerate(look_rows) if ok]
+        extra["look_errors"] = _look_summary(tally.look_rows, spec.skills)
     if augment:
         extra["augment"] = True
+    counts = tally.summary()
     return {"task": task, "variant": variant, "method": method, "profile": profile, "seed": seed, "action_noise": noise,
-            "attempts": attempts, "successes": n_ok, "rate": n_ok / attempts,
-            "by_source_demo": {str(k): {"successes": v[0], "attempts": v[1]} for k, v in sorted(by_demo.items())},
-            "failures": dict(reasons.most_common()), "failures_at_skill": dict(sorted(at_skill.items())),
-            "wall_seconds": time.perf_counter() - t0, **extra}
+            "attempts": attempts, "successes": counts["successes"], "rate": counts["successes"] / attempts,
+            "wall_seconds": time.perf_counter() - t0, **counts, **extra}
+
+
+def _label(e: dict, a, noise: float) -> None:
+    """The entry's experiment settings and the command that reruns it."""
+    e["command"] = (f".venv/bin/python bench/datagen/diagnose.py --task {a.task} --variant {a.variant} "
+                    f"--attempts {a.attempts} --noise {noise} --seed {a.seed} --profile {a.profile} "
+                    f"--method {a.method}" + (f" --touch {a.touch}" if a.touch else "")
+                    + (" --stages" if a.stages else "") + (" --augment" if a.augment else "")
+                    + (" --mimicgen-offsets {} {}".format(*a.mimicgen_offsets) if a.mimicgen_offsets else "")
+                    + (f" --pod-mass {a.pod_mass}" if a.pod_mass else ""))
+    if a.pod_mass:
+        e["pod_mass"] = a.pod_mass
+    e["wrist_backout"] = not a.without_wrist_backout
+    e["command"] += " --without-wrist-backout" if a.without_wrist_backout else ""
+    e["command"] += f" --perception {a.perception}" if a.perception != "ground_truth" else ""
+    if a.finger_friction:
+        e["finger_friction"] = list(a.finger_friction)
+        e["command"] += " --finger-friction {} {}".format(*a.finger_friction)
+    if a.perception == "estimate":
+        e["look_rule"] = a.look_rule
+        e["command"] += f" --look-rule {a.look_rule}"
+
+
+def _key(x: dict) -> tuple:
+    """An entry's identity in the results file (a rerun of the same experiment replaces it)."""
+    return (x["task"], x["variant"], x.get("method", "skillgen"), x["action_noise"], x["seed"], x["profile"],
+            tuple(x.get("mimicgen_offsets", ())), x.get("augment", False), x.get("pod_mass", 0.0),
+            x.get("wrist_backout", True), x.get("perception", "ground_truth"), x.get("look_rule", "latest"),
+            tuple(x.get("finger_friction", ())))
 
 
 def main(argv=None) -> int:
@@ -354,32 +259,10 @@ def main(argv=None) -> int:
     for noise in a.noise:
         e = diagnose(a.task, a.variant, a.attempts, noise, a.seed, a.profile, a.method, a.touch, a.stages,
                      tuple(a.mimicgen_offsets) if a.mimicgen_offsets else None, a.augment, a.perception)
-        e["command"] = (f".venv/bin/python bench/datagen/diagnose.py --task {a.task} --variant {a.variant} "
-                        f"--attempts {a.attempts} --noise {noise} --seed {a.seed} --profile {a.profile} "
-                        f"--method {a.method}" + (f" --touch {a.touch}" if a.touch else "")
-                        + (" --stages" if a.stages else "") + (" --augment" if a.augment else "")
-                        + (" --mimicgen-offsets {} {}".format(*a.mimicgen_offsets) if a.mimicgen_offsets else "")
-                        + (f" --pod-mass {a.pod_mass}" if a.pod_mass else ""))
-        if a.pod_mass:
-            e["pod_mass"] = a.pod_mass
-        e["wrist_backout"] = not a.without_wrist_backout
-        e["command"] += " --without-wrist-backout" if a.without_wrist_backout else ""
-        e["command"] += f" --perception {a.perception}" if a.perception != "ground_truth" else ""
-        if a.finger_friction:
-            e["finger_friction"] = list(a.finger_friction)
-            e["command"] += " --finger-friction {} {}".format(*a.finger_friction)
-        if a.perception == "estimate":
-            e["look_rule"] = a.look_rule
-            e["command"] += f" --look-rule {a.look_rule}"
-
-        def key(x):
-            return (x["task"], x["variant"], x.get("method", "skillgen"), x["action_noise"], x["seed"], x["profile"],
-                    tuple(x.get("mimicgen_offsets", ())), x.get("augment", False), x.get("pod_mass", 0.0),
-                    x.get("wrist_backout", True), x.get("perception", "ground_truth"), x.get("look_rule", "latest"),
-                    tuple(x.get("finger_friction", ())))
+        _label(e, a, noise)
         if OUT.exists():  # re-read: another diagnosis may have written its entry since this one started
             out["entries"] = json.loads(OUT.read_text())["entries"]
-        out["entries"] = [x for x in out["entries"] if key(x) != key(e)] + [e]
+        out["entries"] = [x for x in out["entries"] if _key(x) != _key(e)] + [e]
         OUT.write_text(json.dumps(out, indent=1) + "\n")
         per = ", ".join(f"{k}: {v['successes']}/{v['attempts']}" for k, v in e["by_source_demo"].items())
         touch = f" | touching {a.touch}: {e['attempts_touching']} ({e['successes_touching']} succeeded)" if a.touch else ""

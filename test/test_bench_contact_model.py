@@ -58,12 +58,13 @@ def test_use_model_patches_the_named_part_and_stock_restores_the_sim():
 
     stock_spawn = world.SimWorld._spawn
     try:
-        contact_model.use_model("needle:10")
+        contact_model.use_model("mass:needle:10")
         assert world.SimWorld._spawn is not stock_spawn
         contact_model.use_model("pads")
         assert world.SimWorld._spawn is stock_spawn and world.lowpoly_panda_urdf() != assets.lowpoly_panda_urdf()
-        with pytest.raises(SystemExit, match="unknown arm"):
-            contact_model.use_model("softer")
+        for bad in ("softer", "ring:soft", "mass:needle", "mass:needle:-1", "ring:0"):
+            with pytest.raises(SystemExit, match="unknown arm"):
+                contact_model.use_model(bad)
     finally:
         contact_model.use_model("stock")
     assert world.SimWorld._spawn is stock_spawn and world.lowpoly_panda_urdf is assets.lowpoly_panda_urdf

@@ -12,15 +12,16 @@ the same reset seeds, with the paper profile and its action noise (0.05), as ben
   (`skillgen demos make`) in out/contact_model/, so the demos' grasps are the pads' grasps;
 - `ring:K`: the tripod's contacts compliant, pybullet contactStiffness K N/m and critical-ish damping
   2 sqrt(K) (MuJoCo's default solref gives the ring a soft contact; robosuite's ring_tripod.py keeps it);
-- `needle:F`: the needle F times heavier than MimicGen's density gives it (7.6 g in a hand of ~1 kg: the
-  mass ratio pybullet's solver handles worst).
+- `mass:OBJECT:F`: that object F times as heavy (the needle is 7.6 g at MimicGen's density, in a hand of
+  ~1 kg: the mass ratio pybullet's solver handles worst; our nuts are 50 g where robosuite's density-100 nuts
+  are 15.8 g (square) and 19.4 g (round)).
 
 Per arm and seed: successes, and how far the carried object turned in the hand (the angle of T_ee_object's
 change) over the planned transfer and over the skill that follows. An experiment on the sim, never a
 benchmark cell.
 
     .venv/bin/python bench/datagen/contact_model.py --task Threading --variant D0 --attempts 40 \
-        --seeds 1000 2000 --arms stock pads ring:300 needle:10
+        --seeds 1000 2000 --arms stock pads ring:300 mass:needle:10
 
 Writes bench/results/contact_model.json (one entry per task, variant, arm and noise).
 """
@@ -67,6 +68,7 @@ def use_model(arm: str) -> None:
     from skillgen_ros.core.sim import world
 
     kind, _, value = arm.partition(":")
+    target, _, value = value.rpartition(":") if kind == "mass" else ("tripod", "", value)
     world.lowpoly_panda_urdf = assets.lowpoly_panda_urdf
     world.SimWorld._spawn = _STOCK_SPAWN.setdefault("spawn", world.SimWorld._spawn)
     if kind == "pads":
@@ -74,23 +76,31 @@ def use_model(arm: str) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(pads_urdf(Path(assets.lowpoly_panda_urdf()).read_text()))
         world.lowpoly_panda_urdf = lambda: str(path)
-    elif kind in ("ring", "needle"):
+    elif kind in ("ring", "mass") and target and _positive(value):
         stock, x = _STOCK_SPAWN["spawn"], float(value)
 
         def spawn(self, o, pose):
             body = stock(self, o, pose)
-            if kind == "ring" and o.id == "tripod":
+            if kind == "ring" and o.id == target:
                 for link in range(-1, self.p.getNumJoints(body)):
                     self.p.changeDynamics(body, link, contactStiffness=x, contactDamping=2 * np.sqrt(x))
-            elif kind == "needle" and o.id == "needle":
-                self.p.changeDynamics(body, -1, mass=o.mass * x)
+            elif kind == "mass" and o.id == target:  # the inertia scales with the mass (same shape, denser)
+                inertia = np.asarray(self.p.getDynamicsInfo(body, -1)[2]) * x
+                self.p.changeDynamics(body, -1, mass=o.mass * x, localInertiaDiagonal=inertia.tolist())
             return body
         world.SimWorld._spawn = spawn
     elif kind != "stock":
-        raise SystemExit(f"unknown arm {arm!r}: stock, pads, ring:<N/m> or needle:<mass factor>")
+        raise SystemExit(f"unknown arm {arm!r}: stock, pads, ring:<N/m> or mass:<object>:<factor>")
 
 
 _STOCK_SPAWN: dict = {}
+
+
+def _positive(value: str) -> bool:
+    try:
+        return float(value) > 0
+    except ValueError:
+        return False
 
 
 def turned_in_hand(ep, object_id: str, first_skill: int) -> tuple[float, float] | None:
@@ -168,7 +178,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[1000, 2000])
     ap.add_argument("--noise", type=float, default=0.05)
     ap.add_argument("--arms", nargs="+", default=["stock", "pads"],
-                    help="stock, pads, ring:<contact stiffness N/m>, needle:<mass factor>")
+                    help="stock, pads, ring:<contact stiffness N/m>, mass:<object>:<factor>")
     a = ap.parse_args(argv)
     out = json.loads(OUT.read_text()) if OUT.exists() else {"entries": []}
     for arm in a.arms:

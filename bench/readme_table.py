@@ -50,10 +50,9 @@ def num(x, fmt="{:.2f}") -> str:
     return "not run" if x is None else fmt.format(x)
 
 
-def rows() -> list[tuple[str, str, str, str]]:
-    ik, pl, pe = load("ik"), load("planning"), load("perception")
-    dg, sd, rt, so = load("datagen"), load("sim_driver"), load("recorder_throughput"), load("source_demos")
-    out = generation_rows(dg)
+def _datagen_and_hsp_rows(dg: dict) -> list[tuple[str, str, str, str]]:
+    """Generation throughput, the graph path, estimated poses and HSP timing."""
+    out = []
     out.append(("successful demos / hour / core, Square D0 low-dim (our profile)",
                 num(get(dg, "throughput_lowdim.successes_per_hour_per_core"), "{:.0f}"),
                 "goal 1500; MimicGen ~100 (CPU); Isaac Lab SkillGen 500-670 (GPU)", "datagen"))
@@ -79,6 +78,12 @@ def rows() -> list[tuple[str, str, str, str]]:
     out.append(("HSP training step, pi (BC-RNN-GMM, batch 100, seq 10; 2 threads)",
                 f"{num(get(ht, 'train_step.2.policy_ms_median'), '{:.0f}')} ms",
                 "robomimic 200k steps = ~6 h per network here", "hsp_timing"))
+    return out
+
+
+def _planning_rows(ik: dict, pl: dict) -> list[tuple[str, str, str, str]]:
+    """IK and motion planning (bench/ik, bench/planning)."""
+    out = []
     out.append(("IK solve rate (TRAC-IK protocol, 10k)", pct(get(ik, "ours.solve_rate")),
                 "TRAC-IK 99.70%, KDL 61.77%", "ik"))
     out.append(("IK mean / median time", f"{num(get(ik, 'ours.mean_ms'))} / {num(get(ik, 'ours.median_ms'))} ms",
@@ -96,6 +101,12 @@ def rows() -> list[tuple[str, str, str, str]]:
                 "not run" if pen is None else
                 f"{get(pl, 'results.point_cloud.colliding_plans')} / {1000 * pen:.1f} mm "
                 f"({len(get(pl, 'seeds', []))} x {get(pl, 'problems_per_seed')})", "must be 0", "planning"))
+    return out
+
+
+def _perception_rows(pe: dict) -> list[tuple[str, str, str, str]]:
+    """Pose estimation at 640x480 (bench/perception)."""
+    out = []
     hi = "overall.hi"
     out.append(("perception ADD-S < 1 cm (640x480, depth noise)", pct(get(pe, f"{hi}.adds_lt_1cm_rate")), "goal >= 95%",
                 "perception"))
@@ -111,6 +122,12 @@ def rows() -> list[tuple[str, str, str, str]]:
                 "goal <= 100 ms on one core; FoundationPose ~110 ms (RTX 4090, 720p)", "perception"))
     out.append(("perception vs open3d FPFH+RANSAC+ICP baseline (ADD-S<1cm ratio)",
                 num(get(pe, "ratios_ours_over_baseline.adds_lt_1cm_rate")), "", "perception"))
+    return out
+
+
+def _sim_and_recorder_rows(sd: dict, rt: dict) -> list[tuple[str, str, str, str]]:
+    """The sim driver, the OSC and the recorder (bench/sim_driver, bench/recorder_throughput)."""
+    out = []
     out.append(("sim RTF lockstep, no cameras / two 84x84 cameras",
                 f"{num(get(sd, 'in_process_no_cameras.rtf'), '{:.1f}')} / {num(get(sd, 'in_process_cameras.rtf'), '{:.1f}')}",
                 "", "sim_driver"))
@@ -131,6 +148,13 @@ def rows() -> list[tuple[str, str, str, str]]:
                 f"{(get(rt, 'baseline_null_subscriber.lost./camera/front/points') or 0) + (get(rt, 'baseline_null_subscriber.lost./joint_states') or 0) if rt else 'not run'}",
                 "goal 0", "recorder_throughput"))
     out.append(("recorder write rate", f"{num(get(rt, 'recorder.bag_mb_per_s'), '{:.0f}')} MB/s", "", "recorder_throughput"))
+    return out
+
+
+def rows() -> list[tuple[str, str, str, str]]:
+    dg, so = load("datagen"), load("source_demos")
+    out = generation_rows(dg) + _datagen_and_hsp_rows(dg) + _planning_rows(load("ik"), load("planning"))
+    out += _perception_rows(load("perception")) + _sim_and_recorder_rows(load("sim_driver"), load("recorder_throughput"))
     out += distributed_rows(load("distributed"))
     tasks = get(so, "tasks", {}) or {}
     out.append(("source demos replayed open-loop", ", ".join(f"{t} {v.get('successes')}/{v.get('demos')}" for t, v in tasks.items())

@@ -108,11 +108,12 @@ class Tally:
     reached: Counter = field(default_factory=Counter)
     look_rows: list = field(default_factory=list)  # (success, looks) per attempt
     touched: list = field(default_factory=lambda: [0, 0])  # attempts touching `touch`, and how many succeeded
-    drags: dict = field(default_factory=lambda: defaultdict(list))
+    slides: dict = field(default_factory=lambda: defaultdict(list))  # object -> how far it slid, per attempt
     at_limit: dict = field(default_factory=lambda: defaultdict(lambda: [0, 0]))  # joint -> [attempts, successes]
     dragged: list = field(default_factory=lambda: [0, 0])  # attempts dragging an object, and how many succeeded
 
     def add(self, r, spec, looks, touching) -> None:
+        """One attempt's result `r`, with the looks and touch counter diagnose's wrappers recorded during it."""
         ok = int(r.success)
         self.look_rows.append((bool(r.success), list(looks) if looks is not None else []))
         if touching and touching[0] > 0:
@@ -120,7 +121,7 @@ class Tally:
             self.touched[1] += ok
         moved = drags(r.episode, spec) if r.episode is not None else {}
         for k, v in moved.items():
-            self.drags[k].append(v)
+            self.slides[k].append(v)
         if any(v > DRAGGED for v in moved.values()):
             self.dragged[0] += 1
             self.dragged[1] += ok
@@ -145,7 +146,7 @@ class Tally:
                "failures": dict(self.reasons.most_common()), "failures_at_skill": dict(sorted(self.at_skill.items())),
                "drag_measure": "from the grasp skill's first step",  # entries without it measured from step 0
                "drag_m": {k: {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "n": len(v)}
-                          for k, v in self.drags.items()},
+                          for k, v in self.slides.items()},
                "attempts_dragging": self.dragged[0], "successes_dragging": self.dragged[1],
                "joint_at_limit_in_a_skill": {k: {"attempts": v[0], "successes": v[1]}
                                              for k, v in sorted(self.at_limit.items())},

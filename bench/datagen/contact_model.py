@@ -62,13 +62,25 @@ def pads_urdf(text: str) -> str:
     return text
 
 
+def parse_arm(arm: str) -> tuple[str, str, float]:
+    """(kind, object id, value) of an arm name: stock, pads, ring:<N/m> (the tripod) or mass:<object>:<factor>."""
+    kind, _, rest = arm.partition(":")
+    target, _, value = rest.rpartition(":") if kind == "mass" else ("tripod" if kind == "ring" else "", "", rest)
+    try:
+        x = float(value) if kind in ("ring", "mass") else 0.0
+    except ValueError:
+        x = -1.0
+    if kind in ("stock", "pads") and not rest or kind in ("ring", "mass") and target and x > 0:
+        return kind, target, x
+    raise SystemExit(f"unknown arm {arm!r}: stock, pads, ring:<N/m> or mass:<object>:<factor>")
+
+
 def use_model(arm: str) -> None:
     """Point the sim at the arm's model (before the arm's worlds are built)."""
     from skillgen_ros.core.sim import assets
     from skillgen_ros.core.sim import world
 
-    kind, _, value = arm.partition(":")
-    target, _, value = value.rpartition(":") if kind == "mass" else ("tripod", "", value)
+    kind, target, x = parse_arm(arm)
     world.lowpoly_panda_urdf = assets.lowpoly_panda_urdf
     world.SimWorld._spawn = _STOCK_SPAWN.setdefault("spawn", world.SimWorld._spawn)
     if kind == "pads":
@@ -76,8 +88,8 @@ def use_model(arm: str) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(pads_urdf(Path(assets.lowpoly_panda_urdf()).read_text()))
         world.lowpoly_panda_urdf = lambda: str(path)
-    elif kind in ("ring", "mass") and target and _positive(value):
-        stock, x = _STOCK_SPAWN["spawn"], float(value)
+    elif kind in ("ring", "mass"):
+        stock = _STOCK_SPAWN["spawn"]
 
         def spawn(self, o, pose):
             body = stock(self, o, pose)
@@ -89,18 +101,9 @@ def use_model(arm: str) -> None:
                 self.p.changeDynamics(body, -1, mass=o.mass * x, localInertiaDiagonal=inertia.tolist())
             return body
         world.SimWorld._spawn = spawn
-    elif kind != "stock":
-        raise SystemExit(f"unknown arm {arm!r}: stock, pads, ring:<N/m> or mass:<object>:<factor>")
 
 
 _STOCK_SPAWN: dict = {}
-
-
-def _positive(value: str) -> bool:
-    try:
-        return float(value) > 0
-    except ValueError:
-        return False
 
 
 def turned_in_hand(ep, object_id: str, first_skill: int) -> tuple[float, float] | None:
@@ -128,8 +131,11 @@ def run_arm(arm: str, task: str, variant: str, seeds: list[int], attempts: int, 
     from skillgen_ros.core.skills.bag_demos import expand_bag_paths, load_source_demos
     from skillgen_ros.core.tasks import get_task
 
-    use_model(arm)
     spec = get_task(task)
+    _, target, _ = parse_arm(arm)
+    if target and target not in {o.id for o in spec.objects}:
+        raise SystemExit(f"arm {arm!r}: {task} has no object {target!r}")
+    use_model(arm)
     bags = ROOT / "bags" / task
     if arm == "pads":  # the demos' own grasps on the pads
         from skillgen_ros.cli.main import main as cli
@@ -180,6 +186,8 @@ def main(argv=None) -> int:
     ap.add_argument("--arms", nargs="+", default=["stock", "pads"],
                     help="stock, pads, ring:<contact stiffness N/m>, mass:<object>:<factor>")
     a = ap.parse_args(argv)
+    for arm in a.arms:  # every name checked before the first arm runs
+        parse_arm(arm)
     out = json.loads(OUT.read_text()) if OUT.exists() else {"entries": []}
     for arm in a.arms:
         e = {"task": a.task, "variant": a.variant, "profile": "paper", "action_noise": a.noise,

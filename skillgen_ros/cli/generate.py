@@ -204,12 +204,14 @@ def run_graph(a) -> int:
                              initiation_candidates=a.initiation_candidates, profile=a.profile)
         if not ok:
             raise SkillGenError("datagen rejected the goal (busy)", reason="REJECTED")
-        bar = None  # drawn from the first feedback: a goal that fails at once prints only its error line
+        bar, shown = None, None  # drawn from the first feedback: a goal that fails at once prints only its error
         try:
             while not client.is_done():
                 fb = client.feedback()
-                if fb is not None:
-                    bar = bar or tqdm(total=a.attempts, unit="attempt", dynamic_ncols=True)
+                if fb is not None and (fb.attempts, fb.successes) != shown:  # redrawn when an attempt ends
+                    shown = (fb.attempts, fb.successes)
+                    if bar is None:  # its rate counts from here, not from a zero at the first feedback
+                        bar = tqdm(total=a.attempts, initial=fb.attempts, unit="attempt", dynamic_ncols=True)
                     bar.update(fb.attempts - bar.n)
                     bar.set_postfix(success=f"{fb.successes}/{fb.attempts}", rate=f"{100 * fb.success_rate:.0f}%",
                                     eta=f"{fb.eta_seconds:.0f}s")

@@ -56,24 +56,29 @@ def test_use_model_patches_the_named_part_and_stock_restores_the_sim():
     from bench.datagen import contact_model
     from skillgen_ros.core.sim import assets, world
 
-    stock_spawn = world.SimWorld._spawn
+    stock_spawn, stock_init = world.SimWorld._spawn, world.SimWorld.__init__
     try:
+        contact_model.use_model("hz:480+iterations:100")
+        w = world.SimWorld()
+        assert (w.cfg.physics_hz, w.cfg.solver_iterations, w.substeps) == (480.0, 100, 24)
+        w.close()
         contact_model.use_model("mass:needle:10")
         assert world.SimWorld._spawn is not stock_spawn
         contact_model.use_model("pads")
         assert world.SimWorld._spawn is stock_spawn and world.lowpoly_panda_urdf() != assets.lowpoly_panda_urdf()
-        for bad in ("softer", "ring:soft", "mass:needle", "mass:needle:-1", "ring:0", "pads:2", "mass::3"):
+        for bad in ("softer", "ring:soft", "mass:needle", "mass:needle:-1", "ring:0", "pads:2", "mass::3", "pads+", "hz:250", "iterations:x"):
             with pytest.raises(SystemExit, match="unknown arm"):
                 contact_model.use_model(bad)
     finally:
         contact_model.use_model("stock")
     assert world.SimWorld._spawn is stock_spawn and world.lowpoly_panda_urdf is assets.lowpoly_panda_urdf
+    assert world.SimWorld.__init__ is stock_init
 
 
 def test_an_arm_for_an_object_the_task_lacks_is_refused_before_any_attempt():
     from bench.datagen import contact_model
 
-    assert contact_model.parse_arm("mass:needle:10") == ("mass", "needle", 10.0)
-    assert contact_model.parse_arm("ring:300") == ("ring", "tripod", 300.0)
+    assert contact_model.parse_arm("mass:needle:10") == [("mass", "needle", 10.0)]
+    assert contact_model.parse_arm("pads+ring:300") == [("pads", "", 0.0), ("ring", "tripod", 300.0)]
     with pytest.raises(SystemExit, match="Square has no object 'tripod'"):
         contact_model.run_arm("ring:300", "Square", "D0", [1000], 1, 0.05)

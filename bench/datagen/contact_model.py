@@ -14,7 +14,10 @@ the same reset seeds, with the paper profile and its action noise (0.05), as ben
   2 sqrt(K) (MuJoCo's default solref gives the ring a soft contact; robosuite's ring_tripod.py keeps it);
 - `mass:OBJECT:F`: that object F times as heavy (the needle is 7.6 g at MimicGen's density, in a hand of
   ~1 kg: the mass ratio pybullet's solver handles worst; our nuts are 50 g where robosuite's density-100 nuts
-  are 15.8 g (square) and 19.4 g (round)).
+  are 15.8 g (square) and 19.4 g (round));
+- `hz:H`, `iterations:N`: pybullet's time step 1/H s (ours 240 Hz; robosuite steps MuJoCo at 500 Hz) or its
+  solver's iteration count (ours 50);
+- `A+B`: changes together (e.g. `pads+mass:needle:10`).
 
 Per arm and seed: successes, and how far the carried object turned in the hand (the angle of T_ee_object's
 change) over the planned transfer and over the skill that follows. An experiment on the sim, never a
@@ -62,17 +65,27 @@ def pads_urdf(text: str) -> str:
     return text
 
 
-def parse_arm(arm: str) -> tuple[str, str, float]:
-    """(kind, object id, value) of an arm name: stock, pads, ring:<N/m> (the tripod) or mass:<object>:<factor>."""
-    kind, _, rest = arm.partition(":")
-    target, _, value = rest.rpartition(":") if kind == "mass" else ("tripod" if kind == "ring" else "", "", rest)
-    try:
-        x = float(value) if kind in ("ring", "mass") else 0.0
-    except ValueError:
-        x = -1.0
-    if kind in ("stock", "pads") and not rest or kind in ("ring", "mass") and target and x > 0:
-        return kind, target, x
-    raise SystemExit(f"unknown arm {arm!r}: stock, pads, ring:<N/m> or mass:<object>:<factor>")
+SIM_SETTINGS = {"hz": "physics_hz", "iterations": "solver_iterations"}  # arm kind -> SimConfig field
+SCALED = ("ring", "mass", *SIM_SETTINGS)  # the kinds that take a value
+
+
+def parse_arm(arm: str) -> list[tuple[str, str, float]]:
+    """[(kind, object id, value)] of an arm name: stock, pads, ring:<N/m> (the tripod), mass:<object>:<factor>,
+    or several changes joined by '+' (e.g. pads+mass:needle:10)."""
+    out = []
+    for part in arm.split("+"):
+        kind, _, rest = part.partition(":")
+        target, _, value = rest.rpartition(":") if kind == "mass" else ("tripod" if kind == "ring" else "", "", rest)
+        try:
+            x = float(value) if kind in SCALED else 0.0
+        except ValueError:
+            x = -1.0
+        if not (kind in ("stock", "pads") and not rest or kind in SCALED and x > 0 and (target or kind in SIM_SETTINGS)
+                and (kind != "hz" or x % 20 == 0)):
+            raise SystemExit(f"unknown arm {arm!r}: stock, pads, ring:<N/m>, mass:<object>:<factor>, "
+                             "hz:<multiple of 20>, iterations:<n>, joined by '+'")
+        out.append((kind, target, x))
+    return out
 
 
 def use_model(arm: str) -> None:
@@ -80,26 +93,32 @@ def use_model(arm: str) -> None:
     from skillgen_ros.core.sim import assets
     from skillgen_ros.core.sim import world
 
-    kind, target, x = parse_arm(arm)
+    changes = parse_arm(arm)
     world.lowpoly_panda_urdf = assets.lowpoly_panda_urdf
-    world.SimWorld._spawn = _STOCK_SPAWN.setdefault("spawn", world.SimWorld._spawn)
-    if kind == "pads":
+    world.SimWorld._spawn = stock = _STOCK_SPAWN.setdefault("spawn", world.SimWorld._spawn)
+    world.SimWorld.__init__ = init = _STOCK_SPAWN.setdefault("init", world.SimWorld.__init__)
+    settings = {SIM_SETTINGS[k]: (int(x) if k == "iterations" else x) for k, _, x in changes if k in SIM_SETTINGS}
+    if settings:
+        def init_with(self, config=None, gui=False, **overrides):
+            init(self, config, gui, **{**overrides, **settings})
+        world.SimWorld.__init__ = init_with
+    if any(kind == "pads" for kind, _, _ in changes):
         path = WORK / "panda_pads.urdf"
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(pads_urdf(Path(assets.lowpoly_panda_urdf()).read_text()))
         world.lowpoly_panda_urdf = lambda: str(path)
-    elif kind in ("ring", "mass"):
-        stock = _STOCK_SPAWN["spawn"]
 
-        def spawn(self, o, pose):
-            body = stock(self, o, pose)
+    def spawn(self, o, pose):
+        body = stock(self, o, pose)
+        for kind, target, x in changes:
             if kind == "ring" and o.id == target:
                 for link in range(-1, self.p.getNumJoints(body)):
                     self.p.changeDynamics(body, link, contactStiffness=x, contactDamping=2 * np.sqrt(x))
             elif kind == "mass" and o.id == target:  # the inertia scales with the mass (same shape, denser)
                 inertia = np.asarray(self.p.getDynamicsInfo(body, -1)[2]) * x
                 self.p.changeDynamics(body, -1, mass=o.mass * x, localInertiaDiagonal=inertia.tolist())
-            return body
+        return body
+    if any(kind in ("ring", "mass") for kind, _, _ in changes):
         world.SimWorld._spawn = spawn
 
 
@@ -132,12 +151,12 @@ def run_arm(arm: str, task: str, variant: str, seeds: list[int], attempts: int, 
     from skillgen_ros.core.tasks import get_task
 
     spec = get_task(task)
-    _, target, _ = parse_arm(arm)
-    if target and target not in {o.id for o in spec.objects}:
-        raise SystemExit(f"arm {arm!r}: {task} has no object {target!r}")
+    for _, target, _ in parse_arm(arm):
+        if target and target not in {o.id for o in spec.objects}:
+            raise SystemExit(f"arm {arm!r}: {task} has no object {target!r}")
     use_model(arm)
     bags = ROOT / "bags" / task
-    if arm == "pads":  # the demos' own grasps on the pads
+    if "pads" in arm.split("+"):  # the demos' own grasps on the pads
         from skillgen_ros.cli.main import main as cli
         if cli(["demos", "make", "--task", task, "--out", str(WORK / "bags"), "--force"]) != 0:
             raise SystemExit(f"could not make {task}'s demos on the pads model")
@@ -184,7 +203,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[1000, 2000])
     ap.add_argument("--noise", type=float, default=0.05)
     ap.add_argument("--arms", nargs="+", default=["stock", "pads"],
-                    help="stock, pads, ring:<contact stiffness N/m>, mass:<object>:<factor>")
+                    help="stock, pads, ring:<contact stiffness N/m>, mass:<object>:<factor>, or several joined by '+'")
     a = ap.parse_args(argv)
     for arm in a.arms:  # every name checked before the first arm runs
         parse_arm(arm)

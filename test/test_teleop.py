@@ -165,6 +165,7 @@ def test_the_teleop_holds_the_robot_until_osc_target_has_its_subscribers(ros_dom
     try:
         assert wait_for(lambda: w.ee is not None and not termios.tcgetattr(master)[3] & termios.ICANON, 60), \
             "teleop did not start"
+
         def refused() -> bool:  # a key until it is refused for the subscribers (the EE may arrive first)
             os.write(master, b"w")
             return "fewer than 3 subscribers (is the recorder up?)" in log.read_text()

@@ -95,8 +95,8 @@ def use_model(arm: str) -> None:
 
     changes = parse_arm(arm)
     world.lowpoly_panda_urdf = assets.lowpoly_panda_urdf
-    world.SimWorld._spawn = stock = _STOCK_SPAWN.setdefault("spawn", world.SimWorld._spawn)
-    world.SimWorld.__init__ = init = _STOCK_SPAWN.setdefault("init", world.SimWorld.__init__)
+    world.SimWorld._spawn = stock = _STOCK.setdefault("spawn", world.SimWorld._spawn)
+    world.SimWorld.__init__ = init = _STOCK.setdefault("init", world.SimWorld.__init__)
     settings = {SIM_SETTINGS[k]: (int(x) if k == "iterations" else x) for k, _, x in changes if k in SIM_SETTINGS}
     if settings:
         def init_with(self, config=None, gui=False, **overrides):
@@ -108,21 +108,21 @@ def use_model(arm: str) -> None:
         path.write_text(pads_urdf(Path(assets.lowpoly_panda_urdf()).read_text()))
         world.lowpoly_panda_urdf = lambda: str(path)
 
-    def spawn(self, o, pose):
-        body = stock(self, o, pose)
-        for kind, target, x in changes:
-            if kind == "ring" and o.id == target:
-                for link in range(-1, self.p.getNumJoints(body)):
-                    self.p.changeDynamics(body, link, contactStiffness=x, contactDamping=2 * np.sqrt(x))
-            elif kind == "mass" and o.id == target:  # the inertia scales with the mass (same shape, denser)
-                inertia = np.asarray(self.p.getDynamicsInfo(body, -1)[2]) * x
-                self.p.changeDynamics(body, -1, mass=o.mass * x, localInertiaDiagonal=inertia.tolist())
-        return body
     if any(kind in ("ring", "mass") for kind, _, _ in changes):
+        def spawn(self, o, pose):
+            body = stock(self, o, pose)
+            for kind, target, x in changes:
+                if kind == "ring" and o.id == target:
+                    for link in range(-1, self.p.getNumJoints(body)):
+                        self.p.changeDynamics(body, link, contactStiffness=x, contactDamping=2 * np.sqrt(x))
+                elif kind == "mass" and o.id == target:  # the inertia scales with the mass (same shape, denser)
+                    inertia = np.asarray(self.p.getDynamicsInfo(body, -1)[2]) * x
+                    self.p.changeDynamics(body, -1, mass=o.mass * x, localInertiaDiagonal=inertia.tolist())
+            return body
         world.SimWorld._spawn = spawn
 
 
-_STOCK_SPAWN: dict = {}
+_STOCK: dict = {}  # the sim's own SimWorld._spawn and __init__, kept at the first use_model()
 
 
 def turned_in_hand(ep, object_id: str, first_skill: int) -> tuple[float, float] | None:

@@ -11,6 +11,8 @@ from __future__ import annotations
 import sys
 from types import SimpleNamespace
 
+import pytest
+
 from conftest import REPO
 
 sys.path.insert(0, str(REPO))
@@ -270,3 +272,30 @@ def test_a_barren_tail_batch_retries_and_only_a_long_barren_run_gives_up(tmp_pat
     plan = iter([0] * 30)  # nothing ever succeeds: give up after shard * cap = 25 barren attempts
     with pytest.raises(SystemExit, match="no successes in the last"):
         S.generate([], tmp_path, job_of, demos=6, shard=5, workers=1, cap_factor=5, save=lambda: None)
+
+
+def test_merging_a_cell_new_to_the_table_brings_its_paper_numbers_and_rerun_command(tmp_path):
+    """--merge-from: another process's methods of one cell, with what the README row needs; another protocol
+    is refused and the table stays as it was."""
+    import json
+
+    best = {"successes": 10, "rollouts": 50, "success_rate": 0.2, "wilson95": [0.11, 0.33], "step": 9300}
+    part = {"protocol": {"demos": 1000, "threads": 2}, "cells": {"Threading/D1": {
+        "rerun": "bench/hsp/run.py --cells Threading/D1", "paper": run.PAPER["Threading/D1"],
+        "datasets": {"hsp": {"demos": 1000}}, "networks": {"hsp": {"steps": 13500}},
+        "methods": {m: {"best": best} for m in ("HSP-TAMP", "HSP-Class", "HSP-Reg")}}}}
+    src, dst = tmp_path / "part.json", tmp_path / "hsp.json"
+    src.write_text(json.dumps(part))
+    dst.write_text(json.dumps({"protocol": {"demos": 1000, "threads": 1}, "cells": {}}))
+    a = SimpleNamespace(cells=["Threading/D1"], methods=["HSP-TAMP", "HSP-Class", "HSP-Reg"])
+    assert run.merge_from(src, dst, a) == 0
+    c = json.loads(dst.read_text())["cells"]["Threading/D1"]
+    assert c["paper"] == {"MimicGen-BC": 60.7, "HSP-TAMP": 72, "HSP-Class": 66, "HSP-Reg": 60}
+    assert c["rerun"] == part["cells"]["Threading/D1"]["rerun"] and c["table"]["HSP-TAMP"] == best
+    assert c["methods"]["HSP-Reg"]["merged_from"] == "part.json" and "MimicGen-BC" not in c["table"]
+    before = dst.read_text()
+    part["protocol"]["demos"] = 200
+    src.write_text(json.dumps(part))
+    with pytest.raises(SystemExit, match=r"another protocol \(\['demos'\]\)"):
+        run.merge_from(src, dst, a)
+    assert dst.read_text() == before

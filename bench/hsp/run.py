@@ -341,6 +341,8 @@ def merge_from(src: Path, dst: Path, a) -> int:
         raise SystemExit(f"{src} ran another protocol ({sorted(differ)}); not merged")
     for cell in a.cells:
         o, c = other["cells"][cell], mine["cells"].setdefault(cell, {"datasets": {}, "networks": {}, "methods": {}})
+        for k in ("rerun", "paper"):  # a cell new to dst: its rerun command and the paper's numbers, too
+            c.setdefault(k, o.get(k))
         for m in a.methods:
             net = NETWORK[m]
             c["methods"][m] = {**o["methods"][m], "merged_from": str(src.name)}

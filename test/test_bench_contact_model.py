@@ -1,40 +1,10 @@
-"""bench/datagen/contact_model.py: the pad model loads as robosuite's pads, and the in-hand turn is measured."""
+"""bench/datagen/contact_model.py: each arm changes its part of the sim, and the in-hand turn is measured.
+(The pads themselves: test_sim_contact_model.py.)"""
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation as R
-
-
-def test_pads_urdf_adds_one_box_per_finger_and_drops_the_soft_contact():
-    import pybullet as pb
-    from pathlib import Path
-
-    from bench.datagen import contact_model
-    from skillgen_ros.core.sim.assets import lowpoly_panda_urdf
-
-    stock = Path(lowpoly_panda_urdf()).read_text()
-    text = contact_model.pads_urdf(stock)
-    assert stock.count("<box") == 0 and text.count('<box size="0.016 0.008 0.016"/>') == 2
-    assert stock.count("<stiffness") == 2 and text.count("<stiffness") == 0
-    path = Path(lowpoly_panda_urdf()).with_name("test_panda_pads.urdf")
-    path.write_text(text)
-    cid = pb.connect(pb.DIRECT)
-    try:
-        robot = pb.loadURDF(str(path), useFixedBase=True, physicsClientId=cid)
-        links = {pb.getJointInfo(robot, i, physicsClientId=cid)[12].decode(): i
-                 for i in range(pb.getNumJoints(robot, physicsClientId=cid))}
-        for name, side in (("panda_leftfinger", 1), ("panda_rightfinger", -1)):
-            shapes = pb.getCollisionShapeData(robot, links[name], physicsClientId=cid)
-            boxes = [s for s in shapes if s[2] == pb.GEOM_BOX]
-            assert len(shapes) == 2 and len(boxes) == 1  # the finger mesh and its pad
-            assert boxes[0][3] == pytest.approx((0.016, 0.008, 0.016))
-            inertial = np.array(pb.getDynamicsInfo(robot, links[name], physicsClientId=cid)[3])
-            # shape data are in the link's inertial frame: the pad sits 0.0035 toward the finger's back, 4.3 cm up
-            assert np.add(boxes[0][5], inertial) == pytest.approx((0.0, side * 0.0035, 0.043))
-    finally:
-        pb.disconnect(cid)
-        path.unlink()
 
 
 def test_turned_in_hand_measures_the_transfer_and_the_skill_separately():
@@ -54,7 +24,7 @@ def test_turned_in_hand_measures_the_transfer_and_the_skill_separately():
 
 def test_use_model_patches_the_named_part_and_stock_restores_the_sim():
     from bench.datagen import contact_model
-    from skillgen_ros.core.sim import assets, world
+    from skillgen_ros.core.sim import world
 
     stock_spawn, stock_init = world.SimWorld._spawn, world.SimWorld.__init__
     try:
@@ -65,14 +35,16 @@ def test_use_model_patches_the_named_part_and_stock_restores_the_sim():
         contact_model.use_model("mass:needle:10")
         assert world.SimWorld._spawn is not stock_spawn
         contact_model.use_model("pads")
-        assert world.SimWorld._spawn is stock_spawn and world.lowpoly_panda_urdf() != assets.lowpoly_panda_urdf()
+        assert world.SimWorld._spawn is stock_spawn
+        w = world.SimWorld()
+        assert w.cfg.finger_pads and w.cfg.solver_iterations == 50 and w._urdf.endswith("_pads.urdf")
+        w.close()
         for bad in ("softer", "ring:soft", "mass:needle", "mass:needle:-1", "ring:0", "pads:2", "mass::3", "pads+", "hz:250", "iterations:x"):
             with pytest.raises(SystemExit, match="unknown arm"):
                 contact_model.use_model(bad)
     finally:
         contact_model.use_model("stock")
-    assert world.SimWorld._spawn is stock_spawn and world.lowpoly_panda_urdf is assets.lowpoly_panda_urdf
-    assert world.SimWorld.__init__ is stock_init
+    assert world.SimWorld._spawn is stock_spawn and world.SimWorld.__init__ is stock_init
 
 
 def test_an_arm_for_an_object_the_task_lacks_is_refused_before_any_attempt():
@@ -82,3 +54,31 @@ def test_an_arm_for_an_object_the_task_lacks_is_refused_before_any_attempt():
     assert contact_model.parse_arm("pads+ring:300") == [("pads", "", 0.0), ("ring", "tripod", 300.0)]
     with pytest.raises(SystemExit, match="Square has no object 'tripod'"):
         contact_model.run_arm("ring:300", "Square", "D0", [1000], 1, 0.05)
+
+
+def test_datagen_keeps_each_contact_models_cells_in_their_own_json(tmp_path, monkeypatch):
+    """bench/datagen/run.py --contact-model: never into the default table, never mixed with another model's
+    cells, and never on demos made on another model; all refused before any demo is made or cell runs."""
+    import json
+
+    from bench.datagen import run
+
+    pads = ["--contact-model", "robosuite_pads", "--tasks", "Square", "--variants", "D0", "--attempts", "1"]
+    with pytest.raises(SystemExit, match="their own JSON"):
+        run.main(pads + ["--skip-extras"])  # the default --out: the shipped table's
+    with pytest.raises(SystemExit, match="their own JSON"):
+        run.main(pads + ["--out", str(tmp_path / "pads.json")])  # the extras run on the default model only
+    held = tmp_path / "stock.json"
+    held.write_text(json.dumps({"cells": [{"task": "Square", "variant": "D0", "method": "skillgen",
+                                           "augment": False, "profile": "paper"}]}))
+    with pytest.raises(SystemExit, match="holds the pybullet model's"):
+        run.main(pads + ["--skip-extras", "--out", str(held)])
+    assert not (tmp_path / "pads.json").exists()
+
+    monkeypatch.setattr(run, "ROOT", tmp_path)
+    listing = tmp_path / "out" / "demos" / "robosuite_pads" / "Square" / "subsets.yaml"
+    listing.parent.mkdir(parents=True)
+    listing.write_text("task: Square\ncontact_model: pybullet\n")
+    with pytest.raises(SystemExit, match="made on 'pybullet', not 'robosuite_pads'"):
+        run.source_demo_dir("Square", "robosuite_pads")
+    assert run.source_demo_dir("Square") == tmp_path / "bags" / "Square"

@@ -116,3 +116,23 @@ def test_diagnose_tally_groups_attempts_by_the_last_skills_demo_and_the_failing_
     assert s["failures"] == {"TASK_FAILED: nut not on its peg": 1, "PLAN_FAILED: START_IN_COLLISION": 1}
     assert t.touched == [2, 1]  # two attempts touched, one of them succeeded
     assert s["attempts_dragging"] == 0 and "task_failed_stages" not in s
+
+
+def test_another_contact_models_cells_sit_beside_the_default_models_in_task_order():
+    from bench.readme_table import contact_model_rows
+
+    def cells(sg, mg):
+        out = [dict(_cell(t, v, "skillgen", sg), wilson95=[0, 1]) for t, v in MARGIN_CELLS]
+        return out + [dict(_cell(t, v, "mimicgen", mg), wilson95=[0, 1]) for t, v in MARGIN_CELLS]
+
+    stock = {"cells": cells(0.5, 0.4)}
+    pads = {"contact_model": "robosuite_pads", "cells": cells(0.7, 0.4)[::-1]}  # in completion order
+    rows = contact_model_rows(stock, pads)
+    table = [r for r in rows if r.startswith("| ") and not r.startswith("| task")]
+    assert [r.split(" | ")[:2] for r in table] == [["| " + t, v] for t, v in MARGIN_CELLS]
+    assert table[0].split(" | ")[2:4] == ["50.0% (0-100)", "70.0% (0-100)"]
+    assert rows[-1].startswith("- skillgen vs mimicgen, Square/Threading/NutAssembly D1-D2: 70.0 vs 40.0 (+30.0) on "
+                               "`robosuite_pads`, 50.0 vs 40.0 (+10.0) on `pybullet`")
+    pads["cells"] = pads["cells"][1:]  # a margin cell missing: no margin line
+    assert not contact_model_rows(stock, pads)[-1].startswith("- skillgen vs mimicgen")
+    assert contact_model_rows(stock, {"cells": []}) == []

@@ -5,11 +5,11 @@ turned in the hand by 10-25 deg. This changes one part of the contact model at a
 the same reset seeds, with the paper profile and its action noise (0.05), as bench/datagen:
 
 - `stock`: the sim as it is, with the shipped source demos (bags/<task>);
-- `pads`: robosuite's Panda finger pads (models/assets/grippers/panda_gripper.xml `finger1_pad_collision`:
-  half size 0.008 x 0.004 x 0.008, its face 0.5 mm proud of the finger) added to pybullet_data's
-  panda.urdf, whose grip is the convex finger meshes alone, and without that URDF's soft finger contact
-  (`<stiffness value="30000"/>`, `<damping value="1000"/>`); its source demos are remade on that model
-  (`skillgen demos make`) in out/contact_model/, so the demos' grasps are the pads' grasps;
+- `pads`: robosuite's Panda finger pads (SimConfig.finger_pads, core/sim/contact_model.py: panda_gripper.xml's
+  `finger1_pad_collision`, half size 0.008 x 0.004 x 0.008, its face 0.5 mm proud of the finger) added to
+  pybullet_data's panda.urdf, whose grip is the convex finger meshes alone, and without that URDF's soft finger
+  contact; its source demos are remade on that model (`skillgen demos make`) in out/contact_model/, so the
+  demos' grasps are the pads' grasps (`pads+iterations:200` is core's `robosuite_pads` contact model);
 - `ring:K`: the tripod's contacts compliant, pybullet contactStiffness K N/m and critical-ish damping
   2 sqrt(K) (MuJoCo's default solref gives the ring a soft contact; robosuite's ring_tripod.py keeps it);
 - `mass:OBJECT:F`: that object F times as heavy (the needle is 7.6 g at MimicGen's density, in a hand of
@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import sys
 import time
 from pathlib import Path
@@ -45,28 +44,8 @@ from bench.machine import machine_info  # noqa: E402
 
 OUT = ROOT / "bench" / "results" / "contact_model.json"
 WORK = ROOT / "out" / "contact_model"
-# robosuite panda_gripper.xml: the pad box's half size and centre in the finger frame (its finger frame sits
-# 0.0524 below the grip site's 0.097, ours 0.0584 below panda_grasptarget's 0.1034: the same pad 3.6 mm
-# above the grip point is at z 0.043 here); the face toward the other finger 0.5 mm proud of the mesh.
-PAD_HALF = (0.008, 0.004, 0.008)
-PAD_CENTER_Y, PAD_CENTER_Z = 0.0035, 0.043
-
-
-def pads_urdf(text: str) -> str:
-    """panda.urdf text with robosuite's finger pads added and the fingers' soft contact removed."""
-    for link, y in (("panda_leftfinger", PAD_CENTER_Y), ("panda_rightfinger", -PAD_CENTER_Y)):
-        a = text.index(f'<link name="{link}"')
-        b = text.index("</link>", a)
-        body = re.sub(r"\s*<stiffness[^>]*/>\s*<damping[^>]*/>", "", text[a:b])
-        size = " ".join(f"{2 * h:g}" for h in PAD_HALF)
-        pad = (f'  <collision>\n      <origin rpy="0 0 0" xyz="0 {y:g} {PAD_CENTER_Z:g}"/>\n      <geometry>\n'
-               f'        <box size="{size}"/>\n      </geometry>\n    </collision>\n  ')
-        text = text[:a] + body + pad + text[b:]
-    return text
-
-
 SIM_SETTINGS = {"hz": "physics_hz", "iterations": "solver_iterations"}  # arm kind -> SimConfig field
-SCALED = ("ring", "mass", *SIM_SETTINGS)  # the kinds that take a value
+SCALED = ("ring", "mass", *SIM_SETTINGS)  # the kinds that take a value (pads: SimConfig.finger_pads)
 
 
 def parse_arm(arm: str) -> list[tuple[str, str, float]]:
@@ -90,23 +69,18 @@ def parse_arm(arm: str) -> list[tuple[str, str, float]]:
 
 def use_model(arm: str) -> None:
     """Point the sim at the arm's model (before the arm's worlds are built)."""
-    from skillgen_ros.core.sim import assets
     from skillgen_ros.core.sim import world
 
     changes = parse_arm(arm)
-    world.lowpoly_panda_urdf = assets.lowpoly_panda_urdf
     world.SimWorld._spawn = stock = _STOCK.setdefault("spawn", world.SimWorld._spawn)
     world.SimWorld.__init__ = init = _STOCK.setdefault("init", world.SimWorld.__init__)
     settings = {SIM_SETTINGS[k]: (int(x) if k == "iterations" else x) for k, _, x in changes if k in SIM_SETTINGS}
+    if any(kind == "pads" for kind, _, _ in changes):
+        settings["finger_pads"] = True  # core/sim/contact_model.py's pads (robosuite_pads without its iterations)
     if settings:
         def init_with(self, config=None, gui=False, **overrides):
             init(self, config, gui, **{**overrides, **settings})
         world.SimWorld.__init__ = init_with
-    if any(kind == "pads" for kind, _, _ in changes):
-        path = WORK / "panda_pads.urdf"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(pads_urdf(Path(assets.lowpoly_panda_urdf()).read_text()))
-        world.lowpoly_panda_urdf = lambda: str(path)
 
     if any(kind in ("ring", "mass") for kind, _, _ in changes):
         def spawn(self, o, pose):

@@ -34,6 +34,11 @@ The D0 cells on other seeds, each into its own JSON (a check that a cell's gap t
 An A/B of the planned motions' speed (cells only; a separate JSON so the table stays one setting):
     .venv/bin/python bench/datagen/run.py --seed 3000 --tasks NutAssembly --variants D0 --methods skillgen \
         --velocity-scale 1.0 --skip-extras --out bench/results/datagen_vs10_seed3000.json
+The paper's Square, Threading and Nut Assembly cells on robosuite's finger pads (core/sim/contact_model.py),
+cells only, into their own JSON (the model's source demos are made in out/demos/robosuite_pads/ first):
+    .venv/bin/python bench/datagen/run.py --attempts 200 --workers 2 --tasks Square Threading NutAssembly \
+        --variants D0 D1 D2 --methods skillgen mimicgen --profiles paper --contact-model robosuite_pads \
+        --skip-extras --out bench/results/datagen_robosuite_pads.json
 
 Success cells run in-process (SimGenerationEnv: the same Algorithm 1, dataset writer and seeds as
 the datagen node) with fixed seeds; the graph-overhead cell runs the same attempts through the
@@ -53,14 +58,18 @@ from collections import Counter
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
+import yaml
+
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 from bench.datagen.summary import PROFILE_FREE, cell_key, summarize  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
+from skillgen_ros.core.sim.contact_model import CONTACT_MODELS, DEFAULT_CONTACT_MODEL  # noqa: E402
 from skillgen_ros.core.tasks import TASK_NAMES as TASKS  # noqa: E402  (the one task list)
 METHODS = [("skillgen", False), ("mimicgen", False), ("skillgen", True)]
 PROFILES = ("paper", "skillgen_ros")
+DEFAULT_OUT = ROOT / "bench" / "results" / "datagen.json"
 
 
 def task_variants(task: str) -> list[str]:
@@ -71,9 +80,27 @@ def task_variants(task: str) -> list[str]:
     return list(get_task(task).variants)
 
 
+def source_demo_dir(task: str, contact_model: str = DEFAULT_CONTACT_MODEL) -> Path:
+    """Where a contact model's source demos are: the shipped bags/<task> on the default model, else demos
+    made on that model (`skillgen demos make --contact-model`) in out/demos/<model>/<task>, made on first use."""
+    if contact_model == DEFAULT_CONTACT_MODEL:
+        return ROOT / "bags" / task
+    d = ROOT / "out" / "demos" / contact_model
+    listing = d / task / "subsets.yaml"
+    if not listing.exists():
+        from skillgen_ros.cli.demos import make
+
+        make([task], 10, 3, d, force=True, contact_model=contact_model)
+    made_on = yaml.safe_load(listing.read_text()).get("contact_model", DEFAULT_CONTACT_MODEL)
+    if made_on != contact_model:
+        raise SystemExit(f"{listing}: its demos were made on {made_on!r}, not {contact_model!r}")
+    return d / task
+
+
 def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int, seed: int,
              perception: str, images: bool = False, velocity_scale: float | None = None,
-             profile: str = "skillgen_ros", keep_indices: bool = False) -> dict:
+             profile: str = "skillgen_ros", keep_indices: bool = False,
+             contact_model: str = DEFAULT_CONTACT_MODEL) -> dict:
     """One (task, variant, method, profile) cell in this process; returns counts, CI, timings and the
     initiation candidates used (keep_indices: which attempt indices succeeded, too).
     velocity_scale None: SimEnvConfig's default (graphs.yaml's planner)."""
@@ -87,8 +114,9 @@ def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int,
     if velocity_scale is None:
         velocity_scale = SimEnvConfig.velocity_scale
     task_spec = get_task(task)
-    demos = load_source_demos(expand_bag_paths([str(ROOT / "bags" / task)]), task_spec)
-    env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, images=images, velocity_scale=velocity_scale))
+    demos = load_source_demos(expand_bag_paths([str(source_demo_dir(task, contact_model))]), task_spec)
+    env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, images=images, velocity_scale=velocity_scale,
+                                        contact_model=contact_model))
     with tempfile.TemporaryDirectory() as out:
         req = RunRequest(task=task, variant=variant, method=method, attempts=attempts, seed=seed, augment=augment,
                          output_dir=os.path.join(out, "run"), video_attempts=0, profile=profile)
@@ -102,7 +130,7 @@ def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int,
             "initiation_candidates": req.config().initiation_candidates,
             "initiation_candidates_used": dict(sorted(used.items(), key=lambda kv: int(kv[0]))),
             "attempts_with_retry": sum(any(n > 1 for n in r.initiation_candidates_used) for r in run.results),
-            "perception": perception,
+            "perception": perception, "contact_model": contact_model,
             "images": images, "velocity_scale": velocity_scale, "attempts": run.attempts, "successes": run.successes,
             "rate": run.successes / run.attempts, "wilson95": [lo, hi],
             "paper_rate": paper_rate(task, variant, method, augment),
@@ -225,13 +253,22 @@ def main(argv=None) -> int:
     ap.add_argument("--velocity-scale", type=float, default=None,
                     help="planned motions' fraction of the Panda's V/A/J limits in the cells (A/B of the timing; "
                          "default and the extras: SimEnvConfig's, as graphs.yaml's planner)")
-    ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "datagen.json"))
+    ap.add_argument("--contact-model", default=DEFAULT_CONTACT_MODEL, choices=sorted(CONTACT_MODELS),
+                    help="the sim's contact model for the cells (core/sim/contact_model.py); another than the default "
+                         "needs its own --out and --skip-extras, and makes its source demos in out/demos/<model>/")
+    ap.add_argument("--out", default=str(DEFAULT_OUT))
     ap.add_argument("--only", nargs="+", default=[], choices=sorted(EXTRAS), metavar="PART",
                     help=f"only (re)measure these of {sorted(EXTRAS)} and update the JSON in place")
     a = ap.parse_args(argv)
     n = 10 if a.quick else a.attempts
     path = Path(a.out)
     out = _load(path)
+    held = out.get("contact_model", DEFAULT_CONTACT_MODEL if out["cells"] else a.contact_model)
+    if held != a.contact_model or \
+            a.contact_model != DEFAULT_CONTACT_MODEL and (path == DEFAULT_OUT or a.only or not a.skip_extras):
+        raise SystemExit(f"the {a.contact_model} contact model's cells go to their own JSON, cells only (--out, "
+                         f"--skip-extras); {path} holds the {held} model's")
+    out["contact_model"] = a.contact_model
     rerun = " ".join(["python", "bench/datagen/run.py", *(sys.argv[1:] if argv is None else argv)])
     if a.only:
         for part in a.only:
@@ -247,6 +284,8 @@ def main(argv=None) -> int:
         _save(path, out)
         return 0
     jobs = _jobs(a, n)
+    for task in sorted({j[0] for j in jobs}):  # a model's demos are made before any worker needs them
+        source_demo_dir(task, a.contact_model)
     done = {cell_key(c) for c in out["cells"] if c.get("attempts") == n and c.get("seed", out.get("seed")) == a.seed}
     todo = [j for j in jobs if a.force or _job_key(j) not in done]
     print(f"{len(jobs)} cells, {len(jobs) - len(todo)} already in {path}, running {len(todo)}", flush=True)
@@ -276,8 +315,8 @@ def main(argv=None) -> int:
 
 
 def _jobs(a, n: int) -> list[tuple]:
-    """(task, variant, method, augment, attempts, seed, perception, images, velocity_scale, profile)
-    per cell: profile-free methods once (under `paper`), the others under each profile asked for."""
+    """(task, variant, method, augment, attempts, seed, perception, images, velocity_scale, profile,
+    contact_model) per cell: profile-free methods once (under `paper`), the others under each profile asked for."""
     jobs = []
     for task in a.tasks:
         for variant in task_variants(task):
@@ -287,9 +326,11 @@ def _jobs(a, n: int) -> list[tuple]:
                 profiles = [p for p in a.profiles if method not in PROFILE_FREE] or \
                     (["paper"] if method in PROFILE_FREE else [])
                 for prof in profiles:
-                    jobs.append((task, variant, method, aug, n, a.seed, a.perception, False, a.velocity_scale, prof))
+                    jobs.append((task, variant, method, aug, n, a.seed, a.perception, False, a.velocity_scale, prof,
+                                 a.contact_model))
         if not a.variants or "D0" in a.variants:
-            jobs.append((task, "D0", "replay_noise", False, n, a.seed, a.perception, False, a.velocity_scale, "paper"))
+            jobs.append((task, "D0", "replay_noise", False, n, a.seed, a.perception, False, a.velocity_scale, "paper",
+                         a.contact_model))
     if a.methods:
         jobs = [j for j in jobs if _key(j[2], j[3]) in a.methods]
     return jobs
@@ -320,7 +361,7 @@ def _save(path: Path, out: dict) -> None:
 
 
 def _star(args):
-    return run_cell(*args[:9], profile=args[9])
+    return run_cell(*args[:9], profile=args[9], contact_model=args[10])
 
 
 if __name__ == "__main__":

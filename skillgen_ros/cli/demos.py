@@ -1,6 +1,7 @@
 """`skillgen demos`: make the shipped source demos, or record one by teleoperation.
 
     skillgen demos make --task Square [--task ...|all] [--n 10] [--subset 3] [--out bags] [--force]
+                        [--contact-model pybullet|robosuite_pads]
     skillgen demos record --task Square [--seed 0] [--out recordings] [--keep-failed]
 
 `make` runs the scripted demonstrator (core/demonstrator: it exists only for this) on the
@@ -28,6 +29,7 @@ from pathlib import Path
 import yaml
 
 from skillgen_ros.core.errors import InvalidInputError, SkillGenError
+from skillgen_ros.core.sim.contact_model import CONTACT_MODELS, DEFAULT_CONTACT_MODEL, contact_settings
 from skillgen_ros.core.tasks import TASK_NAMES, get_task
 
 SCENE_SEED_BASE = 1000
@@ -76,15 +78,17 @@ def make_demo(world, task: str, index: int, out_dir: Path, variant: str = "D0",
             "steps": len(rollout.steps), "duration_s": round(rollout.steps[-1].time, 2)}
 
 
-def make(tasks, n: int, subset: int, out: Path, force: bool, variant: str = "D0") -> int:
+def make(tasks, n: int, subset: int, out: Path, force: bool, variant: str = "D0",
+         contact_model: str = DEFAULT_CONTACT_MODEL) -> int:
     from skillgen_ros.core.sim import SimWorld
 
+    settings = contact_settings(contact_model)
     for task in tasks:  # check every argument before the (slow) sim starts
         get_task(task)
         d = out / task
         if d.exists() and any(d.iterdir()) and not force:
             raise InvalidInputError(f"{d} already holds demos; pass --force to remake them", "EXISTS")
-    world = SimWorld()
+    world = SimWorld(**settings)
     try:
         for task in tasks:
             d = out / task
@@ -96,6 +100,7 @@ def make(tasks, n: int, subset: int, out: Path, force: bool, variant: str = "D0"
                 rows.append(row)
                 print(f"{task} {row['name']}: {row['steps']} steps, attempt {row['attempts']}", flush=True)
             doc = {"task": task, "variant": variant, "made_by": "skillgen demos make (scripted demonstrator)",
+                   "contact_model": contact_model,
                    "demos": rows, "subsets": {"all": [r["name"] for r in rows],
                                               f"first{subset}": [r["name"] for r in rows[:subset]]}}
             (d / SUBSETS_FILE).write_text(yaml.safe_dump(doc, sort_keys=False))
@@ -227,6 +232,9 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--variant", default="D0", help="reset distribution of the demo scenes (default D0, the paper's)")
     m.add_argument("--out", default=MAKE_OUT, help=f"folder for <task>/demo_XX/ (default {MAKE_OUT})")
     m.add_argument("--force", action="store_true", help="remake demos that already exist")
+    m.add_argument("--contact-model", default=DEFAULT_CONTACT_MODEL, choices=sorted(CONTACT_MODELS),
+                   help=f"the sim's contact model (core/sim/contact_model.py; default {DEFAULT_CONTACT_MODEL}); "
+                        "generation on a model needs demos made on it")
     r = sub.add_parser("record", help="record one demo by keyboard teleoperation on the sim")
     r.add_argument("--task", required=True, help=f"task to demonstrate, one of {list(TASK_NAMES)}")
     r.add_argument("--seed", type=int, default=0, help="scene seed: where the objects start (default 0)")
@@ -248,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
         if a.n < 1 or not 1 <= subset <= a.n:
             raise InvalidInputError(f"--n must be >= 1 and --subset in [1, n], got {a.n}, {subset}",
                                     "BAD_ARGUMENTS")
-        return make(tasks, a.n, subset, Path(a.out), a.force, a.variant)
+        return make(tasks, a.n, subset, Path(a.out), a.force, a.variant, a.contact_model)
     return record(a.task, a.seed, Path(a.out), a.variant, a.keep_failed)
 
 

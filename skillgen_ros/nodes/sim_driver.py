@@ -2,12 +2,13 @@
 
 Interface, timing modes and input policy: nodes/driver_base.py. Extra parameters here: physics
 rate, OSC gains (robosuite OSC_POSE defaults, critically damped at damping_ratio 1), joint
-computed-torque gain and the gripper force.
+computed-torque gain, the gripper force and the contact model.
 """
 from __future__ import annotations
 
 import sys
 
+from skillgen_ros.core.sim.contact_model import DEFAULT_CONTACT_MODEL
 from skillgen_ros.nodes.runtime import run_node
 
 SIM_PARAMS = {
@@ -19,11 +20,14 @@ SIM_PARAMS = {
     "joint_kp": (400.0, "joint-trajectory computed-torque stiffness (critically damped)"),
     "gripper_force": (20.0, "finger force limit for OSC gripper commands (N per finger)"),
     "gripper_hold_force": (2.0, "finger force once an opening move reached its width (N per finger)"),
+    "contact_model": (DEFAULT_CONTACT_MODEL, "how the hand holds objects: pybullet | robosuite_pads "
+                                             "(core/sim/contact_model.py)"),
 }
 
 
 def make_world(param):
     from skillgen_ros.core.errors import ParameterError, SkillGenError
+    from skillgen_ros.core.sim.contact_model import contact_settings
     from skillgen_ros.core.sim.control import JointGains, OscGains
     from skillgen_ros.core.sim.world import SimConfig, SimWorld
     from skillgen_ros.nodes.driver_cameras import camera_configs
@@ -33,7 +37,8 @@ def make_world(param):
                         osc=OscGains(float(param("osc_kp_pos")), float(param("osc_kp_ori")),
                                      float(param("osc_damping_ratio")), float(param("osc_kp_null"))),
                         joint=JointGains(float(param("joint_kp"))), gripper_force=float(param("gripper_force")),
-                        gripper_hold_force=float(param("gripper_hold_force")), cameras=camera_configs(param))
+                        gripper_hold_force=float(param("gripper_hold_force")), cameras=camera_configs(param),
+                        **contact_settings(str(param("contact_model"))))
         return SimWorld(cfg)
     except SkillGenError as e:
         raise ParameterError(str(e))

@@ -24,6 +24,7 @@ from ..planning.ik import IKSolver
 from ..planning.kinematics import PandaKinematics
 from ..planning.planner import Mode, MotionPlanner, PlanStatus
 from ..sim.camera import CameraConfig
+from ..sim.contact_model import DEFAULT_CONTACT_MODEL, contact_settings
 from ..sim.world import SimWorld
 from ..tasks.suite import get_task
 from .episode import Observation
@@ -51,6 +52,7 @@ class SimEnvConfig:
     # the tracked transit strays from its plan into pegs and the table more often (README, results)
     velocity_scale: float = 0.7
     seed: int = 0
+    contact_model: str = DEFAULT_CONTACT_MODEL  # sim/contact_model.py; its source demos must be made on it
 
     def __post_init__(self):
         if self.perception not in PERCEPTION_MODES:
@@ -59,6 +61,7 @@ class SimEnvConfig:
         if self.collision not in COLLISION_SOURCES:
             raise InvalidInputError(f"collision must be one of {COLLISION_SOURCES}, got {self.collision!r}",
                                     reason="INVALID_PARAMETER")
+        contact_settings(self.contact_model)  # INVALID_PARAMETER for an unknown name
         if not 0.0 < self.velocity_scale <= 1.0:
             raise InvalidInputError(f"velocity_scale must be in (0, 1], got {self.velocity_scale}",
                                     reason="INVALID_PARAMETER")
@@ -77,7 +80,7 @@ class SimGenerationEnv:
             cams.append(CameraConfig("wrist", config.image_size, config.image_size))
         if config.video and not any(c.name == "front" for c in cams):
             cams.append(CameraConfig("front", 160, 120))
-        self.world = world or SimWorld(cameras=tuple(cams))
+        self.world = world or SimWorld(cameras=tuple(cams), **contact_settings(config.contact_model))
         self.kin = PandaKinematics()
         self.cm = CollisionModel(self.kin)
         self.planner = MotionPlanner(self.kin, IKSolver(self.kin, rng=np.random.default_rng(config.seed)), self.cm,

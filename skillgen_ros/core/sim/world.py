@@ -26,6 +26,7 @@ from . import camera as cam
 from .assets import lowpoly_panda_urdf
 from .commands import (Contact, JointTrajectory, TrajectoryCode, TrajectoryResult,  # noqa: F401
                        validate_osc_target, validate_trajectory)
+from .contact_model import with_finger_pads
 from .contacts import hand_wrench
 from .control import (DEFAULT_GOAL_TOLERANCE, ActiveTrajectory, JointGains, OscGains, TrajectorySampler,
                       joint_torques, osc_torques)
@@ -50,7 +51,8 @@ class SimConfig:
     gripper_force: float = 20.0       # N per finger
     gripper_hold_force: float = 2.0   # N per finger once an opening move reaches its width (Franka move())
     cameras: tuple[cam.CameraConfig, ...] = ()
-    solver_iterations: int = 50
+    solver_iterations: int = 50       # contact_model.py names the sets of these two that results used
+    finger_pads: bool = False         # robosuite's finger pads, rigid finger contact (contact_model.py)
     lowpoly_visuals: bool = True      # render the Panda with its collision meshes (~20x faster TinyRenderer)
 
 
@@ -80,6 +82,8 @@ class SimWorld:
                                     "INVALID_PARAMETER")
         self.cameras = self._sized_cameras(DEFAULT_CAMERA_SIZE)
         self._urdf = lowpoly_panda_urdf() if self.cfg.lowpoly_visuals else panda_urdf_path()
+        if self.cfg.finger_pads:
+            self._urdf = with_finger_pads(self._urdf)
         self.scene: SceneDescription | None = None
         self.time = 0.0
         self._build_scene({}, ())

@@ -88,9 +88,9 @@ def source_demo_dir(task: str, contact_model: str = DEFAULT_CONTACT_MODEL) -> Pa
     d = ROOT / "out" / "demos" / contact_model
     listing = d / task / "subsets.yaml"
     if not listing.exists():
-        from skillgen_ros.cli.demos import make
+        from skillgen_ros.cli.demos import DEFAULT_N, DEFAULT_SUBSET, make
 
-        make([task], 10, 3, d, force=True, contact_model=contact_model)
+        make([task], DEFAULT_N, DEFAULT_SUBSET, d, force=True, contact_model=contact_model)
     made_on = yaml.safe_load(listing.read_text()).get("contact_model", DEFAULT_CONTACT_MODEL)
     if made_on != contact_model:
         raise SystemExit(f"{listing}: its demos were made on {made_on!r}, not {contact_model!r}")

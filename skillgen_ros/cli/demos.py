@@ -35,6 +35,7 @@ from skillgen_ros.core.tasks import TASK_NAMES, get_task
 SCENE_SEED_BASE = 1000
 MAX_ATTEMPTS = 6
 SUBSETS_FILE = "subsets.yaml"
+DEFAULT_N = 10  # demos per task: the paper's count
 DEFAULT_SUBSET = 3  # the paper's small source-demo subset; capped at --n
 MAKE_OUT = "bags"  # where the shipped source demos live (and `skillgen generate` reads by default)
 RECORD_OUT = "recordings"  # teleop recordings: their own folder until annotated and chosen
@@ -226,7 +227,7 @@ def _parser() -> argparse.ArgumentParser:
     m = sub.add_parser("make", help="make source demos with the scripted demonstrator (pybullet)")
     m.add_argument("--task", action="append", required=True,
                    help=f"task to make demos for, one of {list(TASK_NAMES)} or 'all' (repeatable)")
-    m.add_argument("--n", type=int, default=10, help="demos per task (default 10, the paper's count)")
+    m.add_argument("--n", type=int, default=DEFAULT_N, help=f"demos per task (default {DEFAULT_N}, the paper's count)")
     m.add_argument("--subset", type=int, default=None,
                    help=f"size of the small subset listed in subsets.yaml (default min({DEFAULT_SUBSET}, n))")
     m.add_argument("--variant", default="D0", help="reset distribution of the demo scenes (default D0, the paper's)")

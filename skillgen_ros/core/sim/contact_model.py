@@ -15,13 +15,12 @@ A model is a set of SimConfig fields, so SimWorld(**contact_settings(name)) buil
 """
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InvalidInputError
+from .assets import generated_urdf
 
 
 @dataclass(frozen=True)
@@ -70,10 +69,4 @@ def with_finger_pads(urdf: str) -> str:
     """Path of a copy of `urdf` with the pads, in the per-user temp dir (as assets.lowpoly_panda_urdf)."""
     src = Path(urdf)
     text = pads_urdf(src.read_text()).replace("package://meshes", str(src.parent / "meshes"))
-    out = Path(tempfile.gettempdir()) / f"skillgen_ros_{os.getuid()}" / f"{src.stem}_pads.urdf"
-    if not out.exists() or out.read_text() != text:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_name(f".{out.name}.{os.getpid()}")
-        tmp.write_text(text)
-        tmp.replace(out)
-    return str(out)
+    return generated_urdf(f"{src.stem}_pads.urdf", text)

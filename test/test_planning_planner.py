@@ -172,6 +172,44 @@ def test_transfer_lifts_off_and_places_onto_supports(setup):
     cm.set_boxes([])
 
 
+def test_the_papers_rule_lets_retreat_and_approach_touch_manipulated_objects_only(setup):
+    """The paper (Appendix, Motion Planning) ignores robot/manipulated-object and manipulated-object/
+    environment contacts on the retreat and approach: a cube grasped with the hand against a second
+    movable block starts in collision without `movable` and plans with it; the same block as a
+    fixture (not in `movable`) still stops it; the transfer itself stays contact-free."""
+    kin, cm, planner = setup
+    cube_T = np.eye(4)
+    cube_T[:3, 3] = (0.45, -0.2, 0.025)
+    block = _box("block", [0.45, -0.2 + 0.025 + 0.011, 0.015], [0.01, 0.01, 0.015])  # beside the cube
+    cm.set_boxes([block])
+    q0 = planner.ik.solve(Pose(cube_T[:3, 3], DOWN).matrix(), seed_q=Q_HOME, timeout=0.5).solutions[0]
+    assert cm.in_collision(q0[None])[0]  # the hand itself touches the block
+    cube = AttachedObject.from_box("cube", [0.025] * 3, np.linalg.inv(kin.fk(q0)) @ cube_T)
+    place = Pose([0.45, 0.2, 0.025], DOWN)
+    kw = dict(attached=cube, timeout=5.0, extras=False)
+    for movable in (None, (), ("cube",)):  # named supports only; the block a fixture
+        res = planner.plan(q0, place, Mode.TRANSFER, movable=movable, **kw)
+        assert res.status is PlanStatus.START_IN_COLLISION, (movable, res.message)
+    paper = planner.plan(q0, place, Mode.TRANSFER, movable=("block", "cube"), **kw)
+    assert paper.ok, paper.message
+    a, b = next((a, b) for name, a, b in paper.segments if name == "transfer")
+    Q = np.vstack([cm.motion_samples(p, q, cube) for p, q in zip(paper.joint_path[a:b], paper.joint_path[a + 1:b + 1])])
+    assert not cm.in_collision(Q, attached=cube).any()
+    # the held object may touch anything (a fixture's low ledge beside it) under the rule, only its support without
+    ledge_T = np.eye(4)
+    ledge_T[:3, 3] = (0.45 + 0.029, -0.2, 0.005)
+    cm.set_boxes([Box("ledge", ledge_T, np.array([0.003, 0.02, 0.005]))])
+    assert not cm.in_collision(q0[None])[0]
+    assert cm.in_collision(q0[None], cube, AllowedContacts("table", support="table"))[0]
+    assert not cm.in_collision(q0[None], cube, AllowedContacts("table", support="table", held_free=True))[0]
+    # a transit whose goal (the grasp) puts the hand against the movable block
+    cm.set_boxes([block, _box("cube", cube_T[:3, 3], [0.025] * 3)])
+    goal = Pose(cube_T[:3, 3], DOWN)
+    assert planner.plan(Q_HOME, goal, manipulated="cube", extras=False).status is PlanStatus.GOAL_IN_COLLISION
+    assert planner.plan(Q_HOME, goal, manipulated="cube", extras=False, movable=("block", "cube")).ok
+    cm.set_boxes([])
+
+
 def test_start_with_the_hand_against_a_fixture_backs_out_along_the_retreat(setup):
     """A replayed skill can leave the fingertips touching a fixture; the straight retreat may pass
     through that contact, but must end clear, and nothing else is tolerated."""

@@ -12,6 +12,9 @@ most of the outcome. This splits a cell's rate by the demo used, once with the r
         --noise 0.05 --seed 1000 --attempts 100 --touch obstacle
     .venv/bin/python bench/datagen/diagnose.py --task CoffeePreparation --variant D0 --method mimicgen \
         --noise 0.05 --seed 1000 --attempts 40 --stages   # the furthest stage each failed attempt reached
+    # A/B of the paper's retreat/approach contact rule on the same seeds (planner.py `movable`)
+    .venv/bin/python bench/datagen/diagnose.py --task NutAssembly --variant D1 --noise 0.05 --seed 1000 \
+        --attempts 40 [--without-paper-contacts]
     # A/B of the planner's wrist back-out on the same seeds (each entry counts the plans each start repair served)
     .venv/bin/python bench/datagen/diagnose.py --task NutAssembly --variant D1 --profile skillgen_ros \
         --noise 0.05 --seed 1000 --attempts 40 [--without-wrist-backout]
@@ -198,6 +201,8 @@ def _label(e: dict, a, noise: float) -> None:
         e["pod_mass"] = a.pod_mass
     e["wrist_backout"] = not a.without_wrist_backout
     e["command"] += " --without-wrist-backout" if a.without_wrist_backout else ""
+    e["paper_contacts"] = not a.without_paper_contacts
+    e["command"] += " --without-paper-contacts" if a.without_paper_contacts else ""
     e["command"] += f" --perception {a.perception}" if a.perception != "ground_truth" else ""
     if a.finger_friction:
         e["finger_friction"] = list(a.finger_friction)
@@ -211,7 +216,8 @@ def _key(x: dict) -> tuple:
     """An entry's identity in the results file (a rerun of the same experiment replaces it)."""
     return (x["task"], x["variant"], x.get("method", "skillgen"), x["action_noise"], x["seed"], x["profile"],
             tuple(x.get("mimicgen_offsets", ())), x.get("augment", False), x.get("pod_mass", 0.0),
-            x.get("wrist_backout", True), x.get("perception", "ground_truth"), x.get("look_rule", "latest"),
+            x.get("wrist_backout", True), x.get("paper_contacts", False), x.get("perception", "ground_truth"),
+            x.get("look_rule", "latest"),
             tuple(x.get("finger_friction", ())))
 
 
@@ -236,6 +242,9 @@ def main(argv=None) -> int:
                     help="estimate: also each look's pose errors against the sim's truth, by outcome")
     ap.add_argument("--without-wrist-backout", action="store_true",
                     help="A/B: the planner without its wrist back-out (start_repair.py, added 2026-12-05)")
+    ap.add_argument("--without-paper-contacts", action="store_true",
+                    help="A/B: retreat/approach allow only the named objects (before 2026-12-06's paper rule: "
+                         "every manipulated object for the hand, anything for the held object)")
     ap.add_argument("--look-rule", default="untouched", choices=["untouched", "latest"],
                     help="estimate, A/B: latest = a movable object takes every look (LookBeliefs before 2026-12-06)")
     ap.add_argument("--finger-friction", type=float, nargs=2, metavar=("LATERAL", "SPINNING"),
@@ -250,6 +259,10 @@ def main(argv=None) -> int:
     if a.without_wrist_backout:
         from skillgen_ros.core.planning.start_repair import StartRepairs
         StartRepairs._wrist_clears = staticmethod(lambda q0, allow, collides: False)
+    if a.without_paper_contacts:
+        from skillgen_ros.core.planning.planner import MotionPlanner
+        plan = MotionPlanner.plan
+        MotionPlanner.plan = lambda self, *args, **kw: plan(self, *args, **{**kw, "movable": None})
     if a.stages and a.task not in STAGES:
         ap.error(f"--stages knows the stages of {', '.join(STAGES)} only")
     if a.pod_mass:

@@ -33,8 +33,10 @@ table is always the half-space z < 0. Clouds must be in the world frame ("", "wo
 Allowed contacts: in TRANSIT the hand may touch `manipulated_object` on the approach and, on the
 retreat, the object whose box contains the start EE position (just released); in TRANSFER the
 held object (`attached_object`, attached as spheres filling its box) may touch the box right
-below it at the start and at the goal (or the table). Bad requests are answered with a status
-code; the node keeps serving.
+below it at the start and at the goal (or the table). Both modes add the paper's rule for the
+retreat and the approach: the hand may touch any manipulated object (a scene object a task defines
+as a non-fixture) and a held object anything. Bad requests are answered with a status code; the
+node keeps serving.
 Callbacks: the service runs in its own mutually exclusive group; subscriptions and the action
 client in a reentrant group, so clouds keep updating while a request plans or executes.
 """
@@ -361,9 +363,10 @@ class PlannerNode(Node):
             c = obstacles[released].pose[:3, 3]
             released_support = _containing(others, c) or support_below(others, c)
         seed = (int(req.seed), int(req.plan_index)) if req.seeded else None
+        movable = tuple(k for k, spec in self._specs.items() if not spec.is_fixture)  # as generation in-process
         result = self.planner.plan(q0, target, mode, attached, manipulated, released,
                                    start_support, goal_support, timeout, released_support=released_support,
-                                   seed=seed, extras=bool(getattr(req, "extras", True)))
+                                   seed=seed, extras=bool(getattr(req, "extras", True)), movable=movable)
         return result.status, result.message, result
 
     # -- output ------------------------------------------------------------------------------

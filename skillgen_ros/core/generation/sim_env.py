@@ -225,12 +225,13 @@ class SimGenerationEnv:
         # planner node's "object whose box holds the start EE" (nodes/planner.py)
         released = (self._last_attached or self._last_skill_object) if mode == "transit" else None
         released_support = self._last_support if mode == "transit" else None
+        movable = tuple(o.id for o in self.scene.objects if not o.is_fixture)  # the paper's retreat/approach rule
         res = self.planner.plan(self.world.joint_positions(), target, Mode(mode), attached=att,
                                 manipulated=skill_object if mode == "transit" else None, released=released,
                                 released_support=released_support,
                                 start_support=self._support_of(attached) if mode == "transfer" else "table",
                                 goal_support=skill_object,
-                                timeout=self.cfg.plan_timeout, extras=self._planner_extras)
+                                timeout=self.cfg.plan_timeout, extras=self._planner_extras, movable=movable)
         self._last_attached = attached if mode == "transfer" else None
         self._last_support = skill_object if mode == "transfer" else None
         self._last_skill_object = skill_object if mode == "transit" else None
@@ -240,20 +241,24 @@ class SimGenerationEnv:
         tr = res.trajectory
         observations = []
         others = [o.id for o in self.scene.objects if o.id not in (skill_object, attached)]
-        # The planner lets the hand touch what it just released, and that object's support, on the
-        # retreat (the paper ignores these contacts there): so does the execution check, while the
-        # EE is still within the retreat's length (10 cm when it backed out from a fixture) of where
-        # it started.
+        # The planner lets the hand touch what it just released, that object's support and every
+        # manipulated object on the retreat and the approach (the paper ignores these contacts there):
+        # so does the execution check, while the EE is still within the retreat's length (10 cm when
+        # it backed out from a fixture) of where it started, or within the approach's of the target.
         w = self.world
         near = max(self.planner.retreat_distance, res.retreat_length) + 0.01
+        near_goal = self.planner.approach_distance + 0.01
         start_ee = w.ee_pose().position
-        on_retreat = [x for x in (released, released_support) if x]
+        on_retreat = [x for x in (released, released_support, *movable) if x]
         w.start_trajectory([f"panda_joint{i}" for i in range(1, 8)], tr.times, tr.positions, tr.velocities)
         while True:
             _, _, done = w.step_trajectory()
             check = others
-            if on_retreat and np.linalg.norm(w.ee_pose().position - start_ee) < near:
+            ee = w.ee_pose().position
+            if on_retreat and np.linalg.norm(ee - start_ee) < near:
                 check = [o for o in others if o not in on_retreat]
+            elif np.linalg.norm(ee - target.position) < near_goal:
+                check = [o for o in others if o not in movable]
             if check and w.robot_in_collision_with(check):
                 self._collided = True
             observations.append(self.observe())

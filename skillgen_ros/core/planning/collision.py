@@ -89,14 +89,17 @@ class AttachedObject:
 class AllowedContacts:
     """Contacts tolerated in retreat/approach: hand <-> `hand_object`, attached <-> `support`.
 
-    hand_object may name several boxes (a tuple), e.g. a nut just released onto a peg and the peg:
-    the paper ignores hand/object and object/environment contacts in these short phases.
+    hand_object may name several boxes (a tuple), e.g. a nut just released onto a peg and the peg,
+    or every manipulated object of the scene: the paper ignores robot/manipulated-object and
+    manipulated-object/environment contacts in these short phases (its Appendix, "Motion Planning").
+    held_free: the held object may touch anything, the table included (that second rule).
     wrist: panda_link7 may touch them too (a start repair, planner.py: a nut pushed down its peg
     leaves the wrist beside the peg's top, inside the spheres' padding)."""
 
     hand_object: str | tuple[str, ...] | None = None
     support: str | None = None
     wrist: bool = False
+    held_free: bool = False
 
     def hand_names(self) -> tuple[str, ...]:
         h = self.hand_object
@@ -296,8 +299,10 @@ class CollisionModel:
                 skip[group == ATTACHED, j] = True
             if allow.support is not None and b.name == allow.support:
                 skip[group == ATTACHED, j] = True
+        if allow.held_free:
+            skip[group == ATTACHED, :] = True
         table = group != LINKS.index("panda_link0")
-        if allow.support == "table":
+        if allow.support == "table" or allow.held_free:
             table &= group != ATTACHED
         if allow.hand_object is not None:  # grasping near the table: fingertips may graze it
             table &= group != HAND
@@ -339,7 +344,7 @@ class CollisionModel:
         support = allow.support if allow.support != "table" else None
         wrist = (group == WRIST) & allow.wrist
         sets = (((group < HAND) & ~wrist, None), ((group == HAND) | wrist, allow.hand_object),
-                (group == ATTACHED, support))
+                ((group == ATTACHED) & (not allow.held_free), support))
         for mask, skip_box in sets:
             if not np.any(mask):
                 continue

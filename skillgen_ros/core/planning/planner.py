@@ -9,8 +9,9 @@
 2. Transit (empty hand) or transfer (with `attached` in the hand): RRT-Connect in joint space
    from the retreat's end to the pre-approach configuration, then shortcutting.
 3. Approach: 5 cm along the gripper's +z to the target (computed backwards from the goal IK).
-During retreat and approach the hand may touch the manipulated object, and the held object may
-touch its support; transit and transfer allow no contact. The whole path is timed with ruckig.
+During retreat and approach the hand may touch the manipulated object, and the held object its
+support; with `movable` (the paper's rule) the hand may touch every manipulated object and the held
+object anything. Transit and transfer allow no contact. The whole path is timed with ruckig.
 The result is a complete immutable value: status, trajectory, joint path, phase timings.
 
 IK randomness (restarts) is drawn per plan() call from SeedSequence((seed, k)), k counting the
@@ -160,7 +161,7 @@ class MotionPlanner(StartRepairs):
              released: str | None = None, start_support: str | None = "table", goal_support: str | None = "table",
              timeout: float = 5.0, retreat: bool = True, approach: bool = True,
              released_support: str | None = None, seed: tuple[int, int] | None = None,
-             extras: bool = True) -> PlanResult:
+             extras: bool = True, movable: tuple[str, ...] | None = None) -> PlanResult:
         """Plan from `start_q` to the EE pose `target`. See the module docstring.
 
         seed=(s, k): draw as the k-th plan after reseed(s) would, whatever this planner ran before
@@ -170,6 +171,11 @@ class MotionPlanner(StartRepairs):
         released_support: what `released` was put on (a peg, a bin); the hand may touch it on the retreat.
         start_support/goal_support: what the held object may touch when lifted from / put down on
         (a box name or "table"), transfer only.
+        movable: the scene's manipulated objects (a task's non-fixture objects), for the paper's rule:
+        it ignores robot/manipulated-object and manipulated-object/environment contacts on the retreat
+        and the approach (its Appendix, "Motion Planning"), so there the hand may touch any of them (a
+        round nut grasped beside the square nut already on its peg) and a held object may touch
+        anything. None: only the named objects above (and a held object only its support).
         extras: this project's start repairs beyond the paper's retreat -> transit -> approach (a hand
         on a fixture backs out along a retreat doubled to 10 cm; a grazing arm escapes along its null
         space; a retreat IK cannot follow is shortened or preceded by a self-motion; an approach IK
@@ -191,13 +197,16 @@ class MotionPlanner(StartRepairs):
                 raise InvalidInputError("transfer needs an attached object")
         except (InvalidInputError, ValueError) as e:
             return PlanResult(PlanStatus.INVALID_REQUEST, message=str(e), timings={})
+        held_free = movable is not None
+        known = {b.name for b in self.cm.boxes}  # a name without geometry would drop the cloud (collision._tree)
+        movable = tuple(m for m in movable or () if m in known and m != getattr(attached, "name", None))
         if mode is Mode.TRANSIT:
-            start_objects = tuple(x for x in (released or manipulated, released_support) if x)
-            c = _Call(self.cm, None, t_all, AllowedContacts(hand_object=start_objects or None),
-                      AllowedContacts(hand_object=manipulated))
+            c = _Call(self.cm, None, t_all, AllowedContacts(_names(released or manipulated, (released_support, *movable))),
+                      AllowedContacts(_names(manipulated, movable)))
         else:
-            c = _Call(self.cm, attached, t_all, AllowedContacts(hand_object=start_support, support=start_support),
-                      AllowedContacts(hand_object=goal_support, support=goal_support))
+            c = _Call(self.cm, attached, t_all,
+                      AllowedContacts(_names(start_support, movable), support=start_support, held_free=held_free),
+                      AllowedContacts(_names(goal_support, movable), support=goal_support, held_free=held_free))
         try:
             q0, escape, touching = self._start(c, q0, extras)
             rounds = self._goal_candidates(c, q0, target.matrix())
@@ -375,6 +384,12 @@ class _PlanFailure(Exception):
     def __init__(self, status: PlanStatus, message: str):
         super().__init__(message)
         self.status = status
+
+
+def _names(first: str | None, more: tuple) -> str | tuple[str, ...] | None:
+    """An AllowedContacts.hand_object: the names given, once each; a single name stays a string."""
+    names = tuple(dict.fromkeys(x for x in (first, *more) if x))
+    return names[0] if len(names) == 1 else names or None
 
 
 class _Call:

@@ -109,6 +109,23 @@ class AllowedContacts:
 NO_CONTACTS = AllowedContacts()
 
 
+def phase_contacts(cm: "CollisionModel", start_objects, goal_objects, movable: tuple[str, ...] | None,
+                   held: str | None = None, start_support: str | None = None,
+                   goal_support: str | None = None) -> tuple[AllowedContacts, AllowedContacts]:
+    """What the retreat (start) and the approach (goal) may touch: the hand the named objects (None
+    names skipped) and, for a held object, its support; with `movable` (the paper's rule) the hand
+    also every manipulated object the scene has a box for, and a held object anything."""
+    known = {b.name for b in cm.boxes}  # a name without geometry would drop the cloud (_tree)
+    more = tuple(m for m in movable or () if m in known and m != held)
+
+    def names(objects):
+        n = tuple(dict.fromkeys(x for x in (*objects, *more) if x))
+        return n[0] if len(n) == 1 else n or None  # one name stays a string
+    held_free = held is not None and movable is not None
+    return (AllowedContacts(names(start_objects), support=start_support, held_free=held_free),
+            AllowedContacts(names(goal_objects), support=goal_support, held_free=held_free))
+
+
 @dataclass(frozen=True)
 class _Spheres:
     link: np.ndarray  # index into LINKS of the frame each sphere moves with

@@ -34,7 +34,7 @@ import numpy as np
 from ..errors import InvalidInputError
 from ..geometry import Pose, validate_pose
 from . import kernels
-from .collision import AllowedContacts, AttachedObject, CollisionModel
+from .collision import AllowedContacts, AttachedObject, CollisionModel, phase_contacts
 from .ik import IKSolver
 from .kinematics import PandaKinematics
 from .phases import CartesianPathError, cartesian_line
@@ -197,16 +197,12 @@ class MotionPlanner(StartRepairs):
                 raise InvalidInputError("transfer needs an attached object")
         except (InvalidInputError, ValueError) as e:
             return PlanResult(PlanStatus.INVALID_REQUEST, message=str(e), timings={})
-        held_free = movable is not None
-        known = {b.name for b in self.cm.boxes}  # a name without geometry would drop the cloud (collision._tree)
-        movable = tuple(m for m in movable or () if m in known and m != getattr(attached, "name", None))
         if mode is Mode.TRANSIT:
-            c = _Call(self.cm, None, t_all, AllowedContacts(_names(released or manipulated, (released_support, *movable))),
-                      AllowedContacts(_names(manipulated, movable)))
+            allow = phase_contacts(self.cm, (released or manipulated, released_support), (manipulated,), movable)
         else:
-            c = _Call(self.cm, attached, t_all,
-                      AllowedContacts(_names(start_support, movable), support=start_support, held_free=held_free),
-                      AllowedContacts(_names(goal_support, movable), support=goal_support, held_free=held_free))
+            allow = phase_contacts(self.cm, (start_support,), (goal_support,), movable, attached.name,
+                                   start_support, goal_support)
+        c = _Call(self.cm, attached if mode is Mode.TRANSFER else None, t_all, *allow)
         try:
             q0, escape, touching = self._start(c, q0, extras)
             rounds = self._goal_candidates(c, q0, target.matrix())
@@ -384,12 +380,6 @@ class _PlanFailure(Exception):
     def __init__(self, status: PlanStatus, message: str):
         super().__init__(message)
         self.status = status
-
-
-def _names(first: str | None, more: tuple) -> str | tuple[str, ...] | None:
-    """An AllowedContacts.hand_object: the names given, once each; a single name stays a string."""
-    names = tuple(dict.fromkeys(x for x in (first, *more) if x))
-    return names[0] if len(names) == 1 else names or None
 
 
 class _Call:

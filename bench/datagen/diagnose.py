@@ -135,12 +135,13 @@ def _set_pod_mass(task: str, kg: float) -> None:
 def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, profile: str,
              method: str = "skillgen", touch: str = "", stages: bool = False,
              mimicgen_offsets: tuple[int, int] | None = None, augment: bool = False,
-             perception: str = "ground_truth") -> dict:
+             perception: str = "ground_truth", bags: Path | None = None) -> dict:
     """One cell's attempts, grouped by the source demo of the last skill (the insertion's); with
     `touch`, also how many attempts pushed the robot against that body, and how many of those
     still succeeded (pybullet lets the arm shove past a fixed obstacle and keep its grasp). With
     `mimicgen_offsets`, MimicGen's subtask_term_offset_range is replaced for this run (an experiment on
-    where its subtasks end, never a baseline number)."""
+    where its subtasks end, never a baseline number). `bags`: the source demos' folder (default the shipped
+    bags/<task>)."""
     from dataclasses import replace
 
     from skillgen_ros.core.generation import mimicgen as mg
@@ -154,7 +155,7 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
     specs_before = dict(mg.MIMICGEN_SPECS)
     if mimicgen_offsets:
         mg.MIMICGEN_SPECS[task] = replace(mg.spec_for(task), offset_range=tuple(mimicgen_offsets))
-    demos = load_source_demos(expand_bag_paths([str(ROOT / "bags" / task)]), spec)
+    demos = load_source_demos(expand_bag_paths([str(bags or ROOT / "bags" / task)]), spec)
     cfg = RunRequest(task=task, variant=variant, method=method, attempts=attempts, seed=seed, profile=profile,
                      action_noise=noise, augment=augment, output_dir="/nonexistent").config()
     env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, video=False))

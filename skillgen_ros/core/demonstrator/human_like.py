@@ -57,6 +57,11 @@ class _PersonAsEnv:
 class ScriptedDemonstrator:
     """Runs one human-like demo of a task on a SimWorld; see the module docstring."""
 
+    # Coffee: the hand turns to the machine's yaw for the lid push, 90 deg from the pod grasp's (the shipped
+    # demos). False keeps the grasp's yaw and pushes 4 cm lower, where the finger base meets the lid (the open
+    # fingers, now across the push, would straddle it): an experiment, bench/datagen/coffee_lid_push.py.
+    LID_PUSH_TURNS = True
+
     def __init__(self, task: str, seed: int):
         self.task = get_task(task)
         self.seed = int(seed)
@@ -331,10 +336,12 @@ class ScriptedDemonstrator:
         """From behind the open lid (machine -y), the open hand, its fingers in a row along machine y, sweeps
         along machine +y over the hinge: the lid tips past upright and falls shut. No second close, so the
         skill's gripper events stay one grasp and one release."""
-        q = down_pose(np.zeros(3), nearest_yaw(object_yaw(m), np.pi, ee_yaw(self.cmd))).quaternion
+        yaw = nearest_yaw(object_yaw(m), np.pi, ee_yaw(self.cmd)) if self.LID_PUSH_TURNS else ee_yaw(self.cmd)
+        q = down_pose(np.zeros(3), yaw).quaternion
+        dz = 0.0 if self.LID_PUSH_TURNS else -0.04
 
         def at(y: float, z: float) -> Pose:
-            return Pose(m.rotation.apply([0.0, y, z]) + m.position, q)
+            return Pose(m.rotation.apply([0.0, y, z + dz]) + m.position, q)
         y0 = LID_PUSH_FROM + self.rng.uniform(-0.01, 0.0)
         self.move(world, at(y0, LID_PUSH_Z + 0.09), 1.2)
         self.move(world, at(y0, LID_PUSH_Z + self.rng.uniform(-0.005, 0.005)), 0.8, tremor=0.5)

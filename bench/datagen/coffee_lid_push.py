@@ -1,0 +1,79 @@
+"""bench/datagen/coffee_lid_push.py: is Coffee D2's gap our demonstrator's wrist turn?
+
+Our human-like demonstrator turns the hand 90 deg between letting the pod go and pushing the lid shut
+(core/demonstrator/human_like.py `LID_PUSH_TURNS`); SkillGen replays that turn rigidly, and in Coffee D2's
+machine turned 150-240 deg it runs panda_joint7 onto its limit (docs/tasks.md). This makes ten demos whose
+lid push keeps the pod grasp's yaw (4 cm lower, where the finger base meets the lid) in
+out/demos/coffee_lid_no_turn/, and runs the same attempts (seed, profile, noise) from them and from the
+shipped bags/Coffee, counting successes and the attempts with a joint on its limit in a skill. An
+experiment on our source demos, not a baseline: the shipped demos and every Coffee cell are unchanged.
+
+    .venv/bin/python bench/datagen/coffee_lid_push.py [--variants D2] [--attempts 40] [--seed 1000]
+
+Writes bench/results/coffee_lid_push.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
+from bench.datagen.diagnose import diagnose  # noqa: E402
+from bench.machine import machine_info  # noqa: E402
+
+OUT = ROOT / "bench" / "results" / "coffee_lid_push.json"
+NO_TURN = ROOT / "out" / "demos" / "coffee_lid_no_turn"
+KEEP = ("successes", "rate", "failures", "by_source_demo", "joint_at_limit_in_a_skill", "wall_seconds")
+
+
+def make_no_turn_demos(force: bool) -> Path:
+    """Ten Coffee demos from the demonstrator with LID_PUSH_TURNS off (made once, or again with --force)."""
+    from skillgen_ros.cli.main import main as cli
+    from skillgen_ros.core.demonstrator import ScriptedDemonstrator
+
+    bags = NO_TURN / "Coffee"
+    if force or not bags.exists():
+        ScriptedDemonstrator.LID_PUSH_TURNS = False
+        try:
+            if cli(["demos", "make", "--task", "Coffee", "--out", str(NO_TURN), "--force"]) != 0:
+                raise SystemExit("could not make the no-turn demos")
+        finally:
+            ScriptedDemonstrator.LID_PUSH_TURNS = True
+    return bags
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--variants", nargs="+", default=["D2"])
+    ap.add_argument("--attempts", type=int, default=40)
+    ap.add_argument("--seed", type=int, default=1000)
+    ap.add_argument("--noise", type=float, default=0.05)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--force-demos", action="store_true", help="remake the no-turn demos")
+    a = ap.parse_args(argv)
+    t0 = time.time()
+    arms = {"shipped (turns)": ROOT / "bags" / "Coffee", "no turn": make_no_turn_demos(a.force_demos)}
+    out = {"experiment": __doc__.splitlines()[2].strip(), "machine": machine_info(), "seed": a.seed,
+           "attempts": a.attempts, "profile": a.profile, "action_noise": a.noise, "variants": {},
+           "command": f".venv/bin/python bench/datagen/coffee_lid_push.py --variants {' '.join(a.variants)} "
+                      f"--attempts {a.attempts} --seed {a.seed}"}
+    for v in a.variants:
+        out["variants"][v] = {}
+        for arm, bags in arms.items():
+            e = diagnose("Coffee", v, a.attempts, a.noise, a.seed, a.profile, bags=bags)
+            out["variants"][v][arm] = {k: e[k] for k in KEEP}
+            j7 = e["joint_at_limit_in_a_skill"].get("panda_joint7", {"attempts": 0, "successes": 0})
+            print(f"Coffee {v} {arm}: {e['successes']}/{a.attempts}; panda_joint7 on its limit in "
+                  f"{j7['attempts']} attempts ({j7['successes']} succeeded)", flush=True)
+    out["wall_seconds"] = time.time() - t0
+    OUT.write_text(json.dumps(out, indent=1) + "\n")
+    print(f"wrote {OUT.relative_to(ROOT)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -12,6 +12,9 @@ success rates compare with the paper's table:
   because the paper's rates count every attempt whose task succeeded. (The graph env never
   reports such collisions; with the filter off both paths count alike.)
 
+Both plan with the paper's retreat/approach contact rule (MotionPlanner.plan `movable`: the hand may
+touch any manipulated object there, a held object anything).
+
 `skillgen_ros` (the default for users) keeps all of these on: better data, and its own columns in
 bench/datagen, never mixed with the paper's. The MimicGen baseline (mimicgen.py) is the same under
 both profiles: it has no planner, no initiation candidates and no release.

@@ -299,3 +299,36 @@ def test_merging_a_cell_new_to_the_table_brings_its_paper_numbers_and_rerun_comm
     with pytest.raises(SystemExit, match=r"another protocol \(\['demos'\]\)"):
         run.merge_from(src, dst, a)
     assert dst.read_text() == before
+
+
+def test_a_lost_shard_regenerated_to_another_count_keeps_its_range_and_records_both(tmp_path, monkeypatch):
+    """out/ gone: a recorded shard is redone over its attempt range. Another CPU's numerics may change its
+    success count (83 -> 70 of 500 on Threading D1's BC): the record takes the new count, keeps the old one,
+    keeps its range, is saved at once, and the next shard starts after that range."""
+    from bench.hsp import shards as S
+    from skillgen_ros.core.generation import sim_env
+
+    monkeypatch.setattr(sim_env, "SimGenerationEnv", lambda *a, **k: SimpleNamespace(close=lambda: None))
+    calls = []
+
+    def fake_shard(job, env=None, demos=None):
+        calls.append((job.first, job.attempts, job.want))
+        ok = 3 if job.first == 0 else job.want  # the lost shard comes back with 3 where 5 were recorded
+        return {"dir": job.out, "first_index": job.first, "attempts": job.attempts, "successes": ok, "seconds": 1.0}
+
+    monkeypatch.setattr(S, "generate_shard", fake_shard)
+
+    def job_of(first, n, want, out):
+        return S.ShardJob("Square", "D0", "skillgen", False, 0, first, n, want, out)
+
+    recs = [{"dir": str(tmp_path / "shard_000"), "first_index": 0, "attempts": 10, "successes": 5, "seconds": 9.0,
+             "fixed": True}]
+    saved = []
+    S.generate(recs, tmp_path, job_of, demos=8, shard=5, workers=1, cap_factor=5,
+               save=lambda: saved.append([dict(r) for r in recs]))
+    assert calls[0] == (0, 10, 0)  # the lost range, fixed: every attempt of it
+    assert recs[0]["successes"] == 3 and recs[0]["attempts"] == 10
+    assert recs[0]["regenerated_from"] == {"successes": 5, "seconds": 9.0}
+    assert saved[0][0]["successes"] == 3  # saved before any new shard ran
+    assert calls[1][0] == 10 and recs[1]["first_index"] == 10  # the next range starts after the lost one
+    assert sum(r["successes"] for r in recs) >= 8

@@ -68,17 +68,25 @@ def generate_shard(job: ShardJob, env=None, demos=None) -> dict:
     return {**rec, "fixed": True} if not job.want else rec
 
 
-def _regenerate(shards: list[dict], job_of, run) -> None:
-    """Shards recorded by a session whose out/ is gone: attempts depend only on (seed, index), so redo them."""
+def _regenerate(shards: list[dict], job_of, run) -> bool:
+    """Shards recorded by a session whose out/ is gone: redo their attempt ranges (attempts depend only on
+    (seed, index)). Another CPU's numerics can change a contact-rich attempt's outcome (Threading D1's BC
+    shard_000: 83/500 recorded on an AMD EPYC, 70/500 regenerated on an Intel Xeon), so a different count
+    replaces the record's successes, the old count kept under `regenerated_from`; the shard keeps its range
+    (`attempts`), so later shards' ranges stay disjoint. True when a record changed (the caller saves it)."""
     missing = [sh for sh in shards if sh["successes"] and not (Path(sh["dir"]) / "demo.hdf5").exists()]
     for sh in missing:
         print(f"  {sh['dir']} is missing; regenerating its {sh['attempts']} attempts", flush=True)
     jobs = [job_of(sh["first_index"], sh["attempts"], 0 if sh.get("fixed") else sh["successes"], sh["dir"])
             for sh in missing]
+    changed = False
     for sh, r in zip(missing, run(jobs)):
-        if (r["attempts"], r["successes"]) != (sh["attempts"], sh["successes"]):
-            raise SystemExit(f"{sh['dir']}: regenerated {r['successes']}/{r['attempts']}, recorded "
-                             f"{sh['successes']}/{sh['attempts']}; delete the cell's dataset record to start over")
+        if r["successes"] != sh["successes"]:
+            print(f"  {sh['dir']}: regenerated {r['successes']}/{r['attempts']}, recorded {sh['successes']}/"
+                  f"{sh['attempts']}; the record takes the regenerated count", flush=True)
+            sh["regenerated_from"] = {"successes": sh["successes"], "seconds": sh.get("seconds")}
+            sh["successes"], sh["seconds"], changed = r["successes"], r["seconds"], True
+    return changed
 
 
 def next_batch(shards: list[dict], demos: int, shard: int, workers: int, cap_factor: int) -> list[tuple[int, int, int]]:
@@ -132,7 +140,8 @@ def generate(shards: list[dict], root: Path, job_of, demos: int, shard: int, wor
             yield generate_shard(j, env=local["env"])
 
     try:
-        _regenerate(shards, job_of, run)
+        if _regenerate(shards, job_of, run):
+            save()
         barren = 0  # attempts since the last success: a tail batch of a few attempts may well have none
         while batch := next_batch(shards, demos, shard, workers, cap_factor):
             jobs = [job_of(first, n, want, str(root / f"shard_{len(shards) + k:03d}"))

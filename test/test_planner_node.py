@@ -281,3 +281,27 @@ def test_a_task_object_is_an_obstacle_by_its_parts(client):
     assert (_call(cli, _request(inside, collision_source=scene, objects=[other])).status
             == PlanToPose.Response.GOAL_IN_COLLISION)
     assert planner.proc.poll() is None
+
+
+def test_the_papers_rule_lets_the_hand_touch_a_manipulated_object_on_the_approach(client):
+    """The node passes the scene's manipulated objects (a task's non-fixture objects) as `movable`, as generation
+    in-process does: a grasp of Nut Assembly's square nut with no manipulated_object named is allowed by the
+    paper's approach rule; the same box sent as a plain 'box' (not a task object, so not movable) blocks it."""
+    from skillgen_ros.core.robot import TABLE_Z
+    from skillgen_ros.core.tasks import get_task
+
+    node, planner = client
+    cli = node.create_client(PlanToPose, "plan_to_pose")
+    assert cli.wait_for_service(timeout_sec=90.0)
+    nut = get_task("NutAssembly").object("square_nut")
+    centre = (0.5, 0.0, TABLE_Z + nut.half_extents[2])
+    handle = np.asarray(centre) + nut.keypoint("handle") + [0.0, 0.0, 0.004]
+    scene = PlanToPose.Request.SOURCE_SCENE
+    as_task = _cube("square_nut", centre, nut.half_extents)
+    as_task.type = nut.type
+    plain = _cube("square_nut", centre, nut.half_extents)
+    r = _call(cli, _request(tuple(handle), collision_source=scene, objects=[as_task], extras=False))
+    assert r.status == PlanToPose.Response.SUCCESS, r.message
+    r = _call(cli, _request(tuple(handle), collision_source=scene, objects=[plain], extras=False))
+    assert r.status == PlanToPose.Response.GOAL_IN_COLLISION, r.message
+    assert planner.proc.poll() is None

@@ -332,3 +332,26 @@ def test_a_lost_shard_regenerated_to_another_count_keeps_its_range_and_records_b
     assert saved[0][0]["successes"] == 3  # saved before any new shard ran
     assert calls[1][0] == 10 and recs[1]["first_index"] == 10  # the next range starts after the lost one
     assert sum(r["successes"] for r in recs) >= 8
+
+
+def test_a_recorded_shard_whose_file_holds_other_demos_takes_the_files_count(tmp_path):
+    """A regeneration written but not recorded (an earlier version stopped there): the record takes the file's
+    count and keeps its own under regenerated_from; a file that agrees, a lost one and an empty shard are left."""
+    import h5py
+
+    from bench.hsp import shards as S
+
+    recs = []
+    for k, (held, recorded) in enumerate([(3, 5), (4, 4), (None, 2), (None, 0)]):
+        d = tmp_path / f"shard_{k:03d}"
+        d.mkdir()
+        if held is not None:
+            with h5py.File(d / "demo.hdf5", "w") as f:
+                for i in range(held):
+                    f.create_group(f"data/demo_{i}")
+        recs.append({"dir": str(d), "first_index": 10 * k, "attempts": 10, "successes": recorded, "seconds": 1.0})
+    assert S.reconcile(recs)
+    assert [r["successes"] for r in recs] == [3, 4, 2, 0]
+    assert recs[0]["regenerated_from"] == {"successes": 5, "seconds": 1.0}
+    assert all("regenerated_from" not in r for r in recs[1:])
+    assert not S.reconcile(recs)

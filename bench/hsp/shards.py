@@ -68,6 +68,26 @@ def generate_shard(job: ShardJob, env=None, demos=None) -> dict:
     return {**rec, "fixed": True} if not job.want else rec
 
 
+def reconcile(shards: list[dict]) -> bool:
+    """A recorded shard whose file holds another number of demos than its record (a regeneration that was
+    written but not recorded: an earlier version stopped there) takes the file's count, as _regenerate does.
+    True when a record changed."""
+    import h5py
+
+    changed = False
+    for sh in shards:
+        f = Path(sh["dir"]) / "demo.hdf5"
+        if sh["successes"] and f.exists():
+            with h5py.File(f, "r", locking=False) as h:
+                n = len(h["data"])
+            if n != sh["successes"]:
+                print(f"  {sh['dir']}: its file holds {n} demos, its record {sh['successes']}; the record takes {n}",
+                      flush=True)
+                sh["regenerated_from"] = {"successes": sh["successes"], "seconds": sh.get("seconds")}
+                sh["successes"], changed = n, True
+    return changed
+
+
 def _regenerate(shards: list[dict], job_of, run) -> bool:
     """Shards recorded by a session whose out/ is gone: redo their attempt ranges (attempts depend only on
     (seed, index)). Another CPU's numerics can change a contact-rich attempt's outcome (Threading D1's BC
@@ -140,7 +160,7 @@ def generate(shards: list[dict], root: Path, job_of, demos: int, shard: int, wor
             yield generate_shard(j, env=local["env"])
 
     try:
-        if _regenerate(shards, job_of, run):
+        if reconcile(shards) | _regenerate(shards, job_of, run):
             save()
         barren = 0  # attempts since the last success: a tail batch of a few attempts may well have none
         while batch := next_batch(shards, demos, shard, workers, cap_factor):

@@ -68,23 +68,23 @@ def generate_shard(job: ShardJob, env=None, demos=None) -> dict:
     return {**rec, "fixed": True} if not job.want else rec
 
 
+def _take_count(sh: dict, successes: int, why: str) -> None:
+    """The record takes a shard's actual success count, keeping the recorded one under `regenerated_from`."""
+    print(f"  {sh['dir']}: {why}, recorded {sh['successes']}; the record takes {successes}", flush=True)
+    sh["regenerated_from"] = {"successes": sh["successes"], "seconds": sh.get("seconds")}
+    sh["successes"] = successes
+
+
 def reconcile(shards: list[dict]) -> bool:
     """A recorded shard whose file holds another number of demos than its record (a regeneration that was
     written but not recorded: an earlier version stopped there) takes the file's count, as _regenerate does.
     True when a record changed."""
-    import h5py
-
     changed = False
     for sh in shards:
         f = Path(sh["dir"]) / "demo.hdf5"
-        if sh["successes"] and f.exists():
-            with h5py.File(f, "r", locking=False) as h:
-                n = len(h["data"])
-            if n != sh["successes"]:
-                print(f"  {sh['dir']}: its file holds {n} demos, its record {sh['successes']}; the record takes {n}",
-                      flush=True)
-                sh["regenerated_from"] = {"successes": sh["successes"], "seconds": sh.get("seconds")}
-                sh["successes"], changed = n, True
+        if sh["successes"] and f.exists() and (n := len(demo_indices([f]))) != sh["successes"]:
+            _take_count(sh, n, f"its file holds {n} demos")
+            changed = True
     return changed
 
 
@@ -102,10 +102,8 @@ def _regenerate(shards: list[dict], job_of, run) -> bool:
     changed = False
     for sh, r in zip(missing, run(jobs)):
         if r["successes"] != sh["successes"]:
-            print(f"  {sh['dir']}: regenerated {r['successes']}/{r['attempts']}, recorded {sh['successes']}/"
-                  f"{sh['attempts']}; the record takes the regenerated count", flush=True)
-            sh["regenerated_from"] = {"successes": sh["successes"], "seconds": sh.get("seconds")}
-            sh["successes"], sh["seconds"], changed = r["successes"], r["seconds"], True
+            _take_count(sh, r["successes"], f"regenerated {r['successes']}/{r['attempts']}")
+            sh["seconds"], changed = r["seconds"], True
     return changed
 
 

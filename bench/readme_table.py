@@ -224,10 +224,12 @@ def _cell_set(part: str, cells: list[str]) -> str:
 
 def generation_rows(dg: dict) -> list[tuple[str, str, str, str]]:
     """Success averages over cells both sides have, each beside the paper's mean over those cells."""
-    from bench.datagen.summary import summarize
+    from bench.datagen.source_digest import is_stale
+    from bench.datagen.summary import cell_key, summarize
 
     cells = _cells(dg)
     s = summarize(cells) if cells else {}
+    stale = {(f"{c['task']} {c['variant']}",) + cell_key(c)[2:] for c in cells if is_stale(c)}
     out = []
     for prof in ("paper", "skillgen_ros"):
         for key in ("skillgen", "mimicgen", "skillgen+IA"):
@@ -237,7 +239,9 @@ def generation_rows(dg: dict) -> list[tuple[str, str, str, str]]:
                 g = get(s, f"{prof}.{key}.{part}", {}) or {}
                 n = len(g.get("cells", []))
                 what = _cell_set(part, g.get("cells", []))
-                ours = "not run" if g.get("ours") is None else f"{g['ours']:.1f}% ({n} cells)"
+                k = sum((name, key, prof) in stale for name in g.get("cells", []))
+                ours = "not run" if g.get("ours") is None else \
+                    f"{g['ours']:.1f}% ({n} cells{f', {k} of them {STALE_MARK}' if k else ''})"
                 paper = "" if g.get("paper") is None else f"{g['paper']:.1f}% (same {n} cells)"
                 out.append((f"generation success, {key}, {PROFILE_LABEL[prof]}, {what}", ours, paper, "datagen"))
     for prof in ("paper", "skillgen_ros"):
@@ -255,12 +259,21 @@ def generation_rows(dg: dict) -> list[tuple[str, str, str, str]]:
     return out
 
 
+STALE_MARK = "†"
+STALE_NOTE = (f"{STALE_MARK}: measured on source demos remade since (the cell's recorded digest of bags/<task> is "
+              "not today's; bench/datagen/source_digest.py): `bench/datagen/run.py` without --force reruns exactly "
+              "these cells.")
+
+
 def _fmt(c: dict | None) -> tuple[str, str]:
+    from bench.datagen.source_digest import is_stale
+
     if c is None:
         return "", ""
     lo, hi = c["wilson95"]
     paper = c.get("paper_rate")
-    return f"{100 * c['rate']:.1f}% ({100 * lo:.0f}-{100 * hi:.0f})", "" if paper is None else f"{paper:.1f}%"
+    mark = f" {STALE_MARK}" if is_stale(c) else ""
+    return f"{100 * c['rate']:.1f}% ({100 * lo:.0f}-{100 * hi:.0f}){mark}", "" if paper is None else f"{paper:.1f}%"
 
 
 def cell_rows() -> list[str]:
@@ -294,6 +307,8 @@ def cell_rows() -> list[str]:
                 row += list(_fmt(paper.get((t, v, key))))
             row += [_fmt(ours.get((t, v, key)))[0] for key in ("skillgen", "skillgen+IA")]
             out.append("| " + " | ".join(row) + " |")
+    if any(STALE_MARK in line for line in out[1:]):
+        out += ["", STALE_NOTE]
     out += ["", "The paper's own averages over its 18 simulation variants (skillgen 75.4%, MimicGen 40.7%, "
             "skillgen+IA 14.7%) are the paper's side of an average above only where it covers 18 cells."]
     return out

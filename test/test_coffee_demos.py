@@ -1,7 +1,7 @@
 """Coffee's shipped source demos (bags/Coffee, made by `skillgen demos make --task Coffee`): ten annotated D0 bags
 from ten scenes with a 3-demo subset, skills as the task lists them, two of the first three replayed open loop in
 the current sim to success with the lid shut (the full 10-demo replay: bench/source_demos; measured 10/10), and the
-no-turn lid push of bench/datagen/coffee_lid_push.py."""
+lid push at the pod grasp's yaw (no wrist turn after the release; bench/datagen/coffee_lid_push.py)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -38,6 +38,21 @@ def test_shipped_demos_replay_open_loop_to_success_with_the_lid_shut():
     """Two of the first three (test/_replay.py: an open-loop replay is not bit-exact across CPUs)."""
     assert_most_replay(subset_paths(BAGS, "all"), "Coffee",
                        lambda world: world.object_joints()["coffee_machine/lid"] < C.LID_CLOSED_TOLERANCE)
+
+
+def _yaw_change_deg(rotations: np.ndarray) -> float:
+    """The largest yaw (about world z) of a downward hand's poses away from the first, in degrees."""
+    yaw = np.arctan2(rotations[:, 1, 0], rotations[:, 0, 0])
+    return float(np.degrees(np.max(np.abs(np.angle(np.exp(1j * (yaw - yaw[0])))))))
+
+
+def test_the_shipped_demos_push_the_lid_without_turning_the_wrist():
+    """After the pod's release the hand keeps its yaw through the lid push (the demonstrator's
+    LID_PUSH_TURNS = False); the earlier demos turned it 90 deg, which SkillGen replays rigidly (Coffee D2)."""
+    for d in B.load_source_demos(subset_paths(BAGS, "all"), TASK):
+        s = d.skills[1]
+        released = int(np.flatnonzero(np.diff(np.sign(s.gripper)))[0]) + 1
+        assert _yaw_change_deg(d.ee_poses[s.start_step + released:s.end_step, :3, :3]) < 20, d.name
 
 
 def test_the_no_turn_lid_push_keeps_the_grasp_yaw_and_still_shuts_the_lid(monkeypatch):

@@ -1,16 +1,18 @@
 """bench/datagen/coffee_lid_push.py: is Coffee D2's gap our demonstrator's wrist turn?
 
-Our human-like demonstrator turns the hand 90 deg between letting the pod go and pushing the lid shut
-(core/demonstrator/human_like.py `LID_PUSH_TURNS`); SkillGen replays that turn rigidly, and in Coffee D2's
-machine turned 150-240 deg it runs panda_joint7 onto its limit (docs/tasks.md). This makes ten demos whose
-lid push keeps the pod grasp's yaw (4 cm lower, where the finger base meets the lid) in
-out/demos/coffee_lid_no_turn/, and runs the same attempts (seed, profile, noise) from them and from the
-shipped bags/Coffee, counting successes and the attempts with a joint on its limit in a skill. An
-experiment on our source demos, not a baseline: the shipped demos and every Coffee cell are unchanged.
+Our human-like demonstrator used to turn the hand 90 deg between letting the pod go and pushing the lid shut
+(core/demonstrator/human_like.py `LID_PUSH_TURNS = True`, the demos shipped until 2026-12-06); SkillGen replays
+that turn rigidly, and in Coffee D2's machine turned 150-240 deg it runs panda_joint7 onto its limit
+(docs/tasks.md). The shipped bags/Coffee now push the lid at the pod grasp's yaw (4 cm lower, where the finger
+base meets the lid). This makes ten demos with the turn in out/demos/coffee_lid_turn/ and runs the same attempts
+(seed, profile, noise) from them and from the shipped bags/Coffee, counting successes and the attempts with a
+joint on its limit in a skill. An experiment on our source demos, not a baseline.
 
     .venv/bin/python bench/datagen/coffee_lid_push.py [--variants D2] [--attempts 40] [--seed 1000]
 
-Writes bench/results/coffee_lid_push.json.
+Writes bench/results/coffee_lid_push.json (its first run, 2026-12-06, compared the then-shipped turning demos with
+no-turn demos made by this script in out/demos/coffee_lid_no_turn/, the demonstrator and seeds bags/Coffee now
+ships).
 """
 from __future__ import annotations
 
@@ -26,23 +28,24 @@ from bench.datagen.diagnose import diagnose  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
 OUT = ROOT / "bench" / "results" / "coffee_lid_push.json"
-NO_TURN = ROOT / "out" / "demos" / "coffee_lid_no_turn"
+TURN = ROOT / "out" / "demos" / "coffee_lid_turn"
+ARMS = ("turn (the demos shipped until 2026-12-06)", "no turn (shipped since 2026-12-06)")
 KEEP = ("successes", "rate", "failures", "by_source_demo", "joint_at_limit_in_a_skill", "wall_seconds")
 
 
-def make_no_turn_demos(force: bool) -> Path:
-    """Ten Coffee demos from the demonstrator with LID_PUSH_TURNS off (made once, or again with --force)."""
+def make_turn_demos(force: bool) -> Path:
+    """Ten Coffee demos from the demonstrator with LID_PUSH_TURNS on (made once, or again with --force)."""
     from skillgen_ros.cli.main import main as cli
     from skillgen_ros.core.demonstrator import ScriptedDemonstrator
 
-    bags = NO_TURN / "Coffee"
+    bags = TURN / "Coffee"
     if force or not bags.exists():
-        ScriptedDemonstrator.LID_PUSH_TURNS = False
+        ScriptedDemonstrator.LID_PUSH_TURNS = True
         try:
-            if cli(["demos", "make", "--task", "Coffee", "--out", str(NO_TURN), "--force"]) != 0:
-                raise SystemExit("could not make the no-turn demos")
+            if cli(["demos", "make", "--task", "Coffee", "--out", str(TURN), "--force"]) != 0:
+                raise SystemExit("could not make the turning demos")
         finally:
-            ScriptedDemonstrator.LID_PUSH_TURNS = True
+            ScriptedDemonstrator.LID_PUSH_TURNS = False
     return bags
 
 
@@ -53,10 +56,10 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--noise", type=float, default=0.05)
     ap.add_argument("--profile", default="paper")
-    ap.add_argument("--force-demos", action="store_true", help="remake the no-turn demos")
+    ap.add_argument("--force-demos", action="store_true", help="remake the turning demos")
     a = ap.parse_args(argv)
     t0 = time.time()
-    arms = {"shipped (turns)": ROOT / "bags" / "Coffee", "no turn": make_no_turn_demos(a.force_demos)}
+    arms = {ARMS[0]: make_turn_demos(a.force_demos), ARMS[1]: ROOT / "bags" / "Coffee"}
     out = {"experiment": __doc__.splitlines()[2].strip(), "machine": machine_info(), "seed": a.seed,
            "attempts": a.attempts, "profile": a.profile, "action_noise": a.noise, "variants": {},
            "command": f".venv/bin/python bench/datagen/coffee_lid_push.py --variants {' '.join(a.variants)} "

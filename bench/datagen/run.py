@@ -6,8 +6,9 @@ again under `skillgen_ros` (ours: initiation candidates, release moves, planner 
 collision filter) as their own columns. MimicGen and Replay-Noise have nothing a profile changes:
 they run once (recorded under `paper`). Every method and profile of a cell uses the same seed, so the
 same scenes. Each finished cell is written to the JSON at once; a rerun skips cells already there
-with the same attempts and seed (resumable; --force reruns them). Each cell records its profile
-and the initiation candidates its attempts used.
+with the same attempts and seed from the same source demos (resumable; --force reruns them; a cell whose
+demos were remade since runs again: bench/datagen/source_digest.py). Each cell records its profile, its
+source demos' digest and the initiation candidates its attempts used.
 
 Full protocol (about 2 h on 2 cores; see the README for the last measured duration):
     .venv/bin/python bench/datagen/run.py --attempts 200 --workers 2
@@ -62,6 +63,7 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+from bench.datagen import source_digest  # noqa: E402
 from bench.datagen.summary import PROFILE_FREE, cell_key, summarize  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
@@ -114,7 +116,9 @@ def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int,
     if velocity_scale is None:
         velocity_scale = SimEnvConfig.velocity_scale
     task_spec = get_task(task)
-    demos = load_source_demos(expand_bag_paths([str(source_demo_dir(task, contact_model))]), task_spec)
+    demo_dir = source_demo_dir(task, contact_model)
+    source = source_digest.record(demo_dir)  # the demos as loaded, before the cell runs
+    demos = load_source_demos(expand_bag_paths([str(demo_dir)]), task_spec)
     env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, images=images, velocity_scale=velocity_scale,
                                         contact_model=contact_model))
     with tempfile.TemporaryDirectory() as out:
@@ -130,7 +134,7 @@ def run_cell(task: str, variant: str, method: str, augment: bool, attempts: int,
             "initiation_candidates": req.config().initiation_candidates,
             "initiation_candidates_used": dict(sorted(used.items(), key=lambda kv: int(kv[0]))),
             "attempts_with_retry": sum(any(n > 1 for n in r.initiation_candidates_used) for r in run.results),
-            "perception": perception, "contact_model": contact_model,
+            "perception": perception, "contact_model": contact_model, "source_demos": source,
             "images": images, "velocity_scale": velocity_scale, "attempts": run.attempts, "successes": run.successes,
             "rate": run.successes / run.attempts, "wilson95": [lo, hi],
             "paper_rate": paper_rate(task, variant, method, augment),
@@ -286,7 +290,7 @@ def main(argv=None) -> int:
     jobs = _jobs(a, n)
     for task in sorted({j[0] for j in jobs}):  # a model's demos are made before any worker needs them
         source_demo_dir(task, a.contact_model)
-    done = {cell_key(c) for c in out["cells"] if c.get("attempts") == n and c.get("seed", out.get("seed")) == a.seed}
+    done = _done(out, n, a.seed)
     todo = [j for j in jobs if a.force or _job_key(j) not in done]
     print(f"{len(jobs)} cells, {len(jobs) - len(todo)} already in {path}, running {len(todo)}", flush=True)
     t0 = time.perf_counter()
@@ -334,6 +338,13 @@ def _jobs(a, n: int) -> list[tuple]:
     if a.methods:
         jobs = [j for j in jobs if _key(j[2], j[3]) in a.methods]
     return jobs
+
+
+def _done(out: dict, attempts: int, seed: int) -> set[tuple]:
+    """The cells a run skips: measured with these attempts and seed, from the source demos there today (a cell
+    whose demos were remade since runs again; one from before digests were recorded counts as done)."""
+    return {cell_key(c) for c in out["cells"] if c.get("attempts") == attempts
+            and c.get("seed", out.get("seed")) == seed and not source_digest.is_stale(c)}
 
 
 def _job_key(j: tuple) -> tuple:

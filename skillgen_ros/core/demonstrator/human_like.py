@@ -57,10 +57,12 @@ class _PersonAsEnv:
 class ScriptedDemonstrator:
     """Runs one human-like demo of a task on a SimWorld; see the module docstring."""
 
-    # Coffee: the hand turns to the machine's yaw for the lid push, 90 deg from the pod grasp's (the shipped
-    # demos). False keeps the grasp's yaw and pushes 4 cm lower, where the finger base meets the lid (the open
-    # fingers, now across the push, would straddle it): an experiment, bench/datagen/coffee_lid_push.py.
-    LID_PUSH_TURNS = True
+    # Coffee: False (the shipped demos since 2026-12-06) pushes the lid at the pod grasp's yaw, 4 cm lower, where
+    # the finger base meets the lid (the open fingers, across the push, would straddle it). True turns the hand to
+    # the machine's yaw first, 90 deg from the grasp's (the earlier demos): SkillGen replays that turn rigidly and
+    # in D2's turned machines it runs panda_joint7 onto its limit (bench/datagen/coffee_lid_push.py: D2 14/40
+    # from the turning demos vs 26/40 without the turn).
+    LID_PUSH_TURNS = False
 
     def __init__(self, task: str, seed: int):
         self.task = get_task(task)

@@ -72,6 +72,7 @@ def main() -> int:
                          "baseline_other_scene_successes": base, "baseline_rate": base / n,
                          "ratio_vs_baseline": (succ / base) if base else None, "per_demo": rows}
         print(f"{task}: {succ}/{n} open-loop replays succeed (baseline, other scene: {base}/{n})")
+    results = {t: results[t] for t in TASK_NAMES if t in results}  # the task list's order, however many reran
     doc = {"benchmark": "source_demos", "command": "python bench/source_demos/run.py" + (" --quick" if a.quick else "")
            + ("" if list(a.tasks) == list(TASK_NAMES) else " --tasks " + " ".join(a.tasks)),
            "what": "open-loop replay of the shipped source demos from their recorded initial scenes (pybullet)",

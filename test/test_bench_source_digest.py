@@ -11,10 +11,10 @@ from bench import readme_table  # noqa: E402
 from bench.datagen import run, source_digest  # noqa: E402
 
 
-def _demos(tmp_path, content=b"bag"):
+def _demos(tmp_path):
     d = tmp_path / "bags" / "Coffee"
     (d / "demo_00").mkdir(parents=True, exist_ok=True)
-    (d / "demo_00" / "demo_00_0.mcap").write_bytes(content)
+    (d / "demo_00" / "demo_00_0.mcap").write_bytes(b"bag")
     (d / "subsets.yaml").write_text("task: Coffee\n")
     return d
 

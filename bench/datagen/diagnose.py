@@ -37,6 +37,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+from bench.datagen import source_digest  # noqa: E402
 from bench.datagen.attempt_tally import DRAGGED, STAGES, Tally  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 from skillgen_ros.core.planning.start_repair import START_REPAIRS  # noqa: E402
@@ -155,7 +156,9 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
     specs_before = dict(mg.MIMICGEN_SPECS)
     if mimicgen_offsets:
         mg.MIMICGEN_SPECS[task] = replace(mg.spec_for(task), offset_range=tuple(mimicgen_offsets))
-    demos = load_source_demos(expand_bag_paths([str(bags or ROOT / "bags" / task)]), spec)
+    bags = Path(bags or ROOT / "bags" / task)
+    source = source_digest.record(bags)  # which demos: an entry from remade demos is another entry
+    demos = load_source_demos(expand_bag_paths([str(bags)]), spec)
     cfg = RunRequest(task=task, variant=variant, method=method, attempts=attempts, seed=seed, profile=profile,
                      action_noise=noise, augment=augment, output_dir="/nonexistent").config()
     env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, video=False))
@@ -187,7 +190,7 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
     counts = tally.summary()
     return {"task": task, "variant": variant, "method": method, "profile": profile, "seed": seed, "action_noise": noise,
             "attempts": attempts, "successes": counts["successes"], "rate": counts["successes"] / attempts,
-            "wall_seconds": time.perf_counter() - t0, **counts, **extra}
+            "wall_seconds": time.perf_counter() - t0, "source_demos": source, **counts, **extra}
 
 
 def _label(e: dict, a, noise: float) -> None:
@@ -219,7 +222,7 @@ def _key(x: dict) -> tuple:
             tuple(x.get("mimicgen_offsets", ())), x.get("augment", False), x.get("pod_mass", 0.0),
             x.get("wrist_backout", True), x.get("paper_contacts", False), x.get("perception", "ground_truth"),
             x.get("look_rule", "latest"),
-            tuple(x.get("finger_friction", ())))
+            tuple(x.get("finger_friction", ())), (x.get("source_demos") or {}).get("sha256"))
 
 
 def main(argv=None) -> int:

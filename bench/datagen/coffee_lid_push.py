@@ -49,6 +49,16 @@ def make_turn_demos(force: bool) -> Path:
     return bags
 
 
+def _kept(a) -> dict:
+    """Other variants' results already in OUT from the same settings (a run of D2 keeps D0's)."""
+    if not OUT.exists():
+        return {}
+    old = json.loads(OUT.read_text())
+    same = all(old.get(k) == v for k, v in (("seed", a.seed), ("attempts", a.attempts), ("profile", a.profile),
+                                             ("action_noise", a.noise)))
+    return {v: r for v, r in old.get("variants", {}).items() if same and v not in a.variants}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variants", nargs="+", default=["D2"])
@@ -61,9 +71,9 @@ def main(argv=None) -> int:
     t0 = time.time()
     arms = {ARMS[0]: make_turn_demos(a.force_demos), ARMS[1]: ROOT / "bags" / "Coffee"}
     out = {"experiment": __doc__.splitlines()[2].strip(), "machine": machine_info(), "seed": a.seed,
-           "attempts": a.attempts, "profile": a.profile, "action_noise": a.noise, "variants": {},
-           "command": f".venv/bin/python bench/datagen/coffee_lid_push.py --variants {' '.join(a.variants)} "
-                      f"--attempts {a.attempts} --seed {a.seed}"}
+           "attempts": a.attempts, "profile": a.profile, "action_noise": a.noise, "variants": _kept(a)}
+    if out["variants"] and "arms_relabelled" in json.loads(OUT.read_text()):  # a kept variant's provenance
+        out["arms_relabelled"] = json.loads(OUT.read_text())["arms_relabelled"]
     for v in a.variants:
         out["variants"][v] = {}
         for arm, bags in arms.items():
@@ -72,6 +82,8 @@ def main(argv=None) -> int:
             j7 = e["joint_at_limit_in_a_skill"].get("panda_joint7", {"attempts": 0, "successes": 0})
             print(f"Coffee {v} {arm}: {e['successes']}/{a.attempts}; panda_joint7 on its limit in "
                   f"{j7['attempts']} attempts ({j7['successes']} succeeded)", flush=True)
+    out["command"] = (f".venv/bin/python bench/datagen/coffee_lid_push.py --variants {' '.join(out['variants'])} "
+                      f"--attempts {a.attempts} --seed {a.seed}")
     out["wall_seconds"] = time.time() - t0
     OUT.write_text(json.dumps(out, indent=1) + "\n")
     print(f"wrote {OUT.relative_to(ROOT)}")

@@ -50,13 +50,15 @@ def make_turn_demos(force: bool) -> Path:
 
 
 def _kept(a) -> dict:
-    """Other variants' results already in OUT from the same settings (a run of D2 keeps D0's)."""
-    if not OUT.exists():
-        return {}
-    old = json.loads(OUT.read_text())
-    same = all(old.get(k) == v for k, v in (("seed", a.seed), ("attempts", a.attempts), ("profile", a.profile),
-                                             ("action_noise", a.noise)))
-    return {v: r for v, r in old.get("variants", {}).items() if same and v not in a.variants}
+    """What OUT holds from the same settings that this run keeps: the other variants' results (a run of D2
+    keeps D0's) and, with them, their arms' provenance note."""
+    old = json.loads(OUT.read_text()) if OUT.exists() else {}
+    if any(old.get(k) != v for k, v in (("seed", a.seed), ("attempts", a.attempts), ("profile", a.profile),
+                                        ("action_noise", a.noise))):
+        return {"variants": {}}
+    variants = {v: r for v, r in old.get("variants", {}).items() if v not in a.variants}
+    note = {"arms_relabelled": old["arms_relabelled"]} if variants and "arms_relabelled" in old else {}
+    return {"variants": variants, **note}
 
 
 def main(argv=None) -> int:
@@ -71,9 +73,7 @@ def main(argv=None) -> int:
     t0 = time.time()
     arms = {ARMS[0]: make_turn_demos(a.force_demos), ARMS[1]: ROOT / "bags" / "Coffee"}
     out = {"experiment": __doc__.splitlines()[2].strip(), "machine": machine_info(), "seed": a.seed,
-           "attempts": a.attempts, "profile": a.profile, "action_noise": a.noise, "variants": _kept(a)}
-    if out["variants"] and "arms_relabelled" in json.loads(OUT.read_text()):  # a kept variant's provenance
-        out["arms_relabelled"] = json.loads(OUT.read_text())["arms_relabelled"]
+           "attempts": a.attempts, "profile": a.profile, "action_noise": a.noise, **_kept(a)}
     for v in a.variants:
         out["variants"][v] = {}
         for arm, bags in arms.items():

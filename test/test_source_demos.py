@@ -206,6 +206,27 @@ def test_every_error_is_a_skillgen_error(tmp_path):
     assert e.value.reason == "BAG_NOT_FOUND"
 
 
+def test_every_shipped_grasp_lifts_within_ten_steps_of_the_close(demos):
+    """The demonstrator lifts as soon as the fingers stop (human_like.py PROMPT_LIFT), inside MimicGen's subtask
+    ends (the grasp + 5-10 steps): the demos shipped until 2026-12-06 first rose 1 cm 23-28 steps after the close
+    and MimicGen's next subtask dragged the object along the table (bench/datagen/grasp_hold.py)."""
+    rises = {}
+    for task, ds in demos.items():
+        for d in ds:
+            z = d.ee_poses[:, 2, 3]
+            for s in d.skills:
+                if not s.name.startswith("grasp"):
+                    continue
+                g = d.gripper[s.start_step:s.end_step]
+                close = s.start_step + int(np.argmax(g > 0))
+                assert g.max() > 0, (task, d.name, s.name)
+                risen = np.nonzero(z[close:] > z[close] + 0.01)[0]
+                rises[(task, d.name, s.name)] = int(risen[0]) if len(risen) else len(z)
+    assert {t for t, _, _ in rises} == set(TASK_NAMES)
+    late = {k: v for k, v in rises.items() if v > 10}
+    assert not late, late
+
+
 @pytest.mark.parametrize("task", ["Square", "PickPlace", "Threading"])
 def test_shipped_demos_still_replay_in_the_current_sim(task):
     """Guard against sim changes that silently invalidate the shipped bags (full check: bench/source_demos):

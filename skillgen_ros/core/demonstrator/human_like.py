@@ -63,6 +63,17 @@ class ScriptedDemonstrator:
     # in D2's turned machines it runs panda_joint7 onto its limit (bench/datagen/coffee_lid_push.py: D2 14/40
     # from the turning demos vs 26/40 without the turn).
     LID_PUSH_TURNS = False
+    # After closing on an object the person lifts as soon as the fingers have stopped, as a teleoperator does: they
+    # reach the object in 2 control periods and stop by the 3rd (widths 80 -> 43 -> 36 -> 35.5 mm), so the hand
+    # holds GRASP_SETTLE_S[True] and rises its first PROMPT_RISE, the first cm 8-10 steps after the close. False: the
+    # demos shipped until 2026-12-06, which held 0.6-0.78 s and eased the lift in (min-jerk), the first cm 23-28
+    # steps after the close, past MimicGen's subtask ends (the grasp + 5-10 steps, 10-20 for Square and Nut
+    # Assembly): its next subtask then began with the object on the table and dragged it there
+    # (bench/datagen/grasp_hold.py; docs/source_demos.md).
+    PROMPT_LIFT = True
+    GRASP_SETTLE_S = {True: 0.15, False: 0.6}
+    PROMPT_RISE = (0.03, 0.3)  # m, s
+    COFFEE_PREP_GRASP_DWELL = {True: (3, 5), False: (10, 15)}  # control periods, the privileged script's dwell
 
     def __init__(self, task: str, seed: int):
         self.task = get_task(task)
@@ -130,9 +141,13 @@ class ScriptedDemonstrator:
         self.move(world, near, 0.6 + h / 0.15, tremor=0.5)
         self.move(world, grasp, 0.5, tremor=0.2)
         self.hold(world, 0.2)
-        self.gripper(world, CLOSED, 0.6)
+        self.gripper(world, CLOSED, self.GRASP_SETTLE_S[self.PROMPT_LIFT])
 
     def lift(self, world, height: float) -> None:
+        """Straight up to `height` above the table; right after a grasp (see PROMPT_LIFT)."""
+        if self.PROMPT_LIFT:
+            dz, seconds = self.PROMPT_RISE
+            self.move(world, Pose(self.cmd.position + [0.0, 0.0, dz], self.cmd.quaternion), seconds, tremor=0.3)
         up = Pose(np.r_[self.cmd.position[:2], TABLE_Z + height], self.cmd.quaternion)
         self.move(world, up, 0.5 + abs(height - self.cmd.position[2]) / 0.2, tremor=0.5)
 
@@ -354,8 +369,9 @@ class ScriptedDemonstrator:
     def _coffee_preparation(self, world) -> None:
         """The privileged script's five skills (core/tasks/scripted_coffee_prep.py) at this demo's pace: its speeds
         divided by the style's slowness, its approach height and dwell times the style's (see _PersonAsEnv)."""
+        dwell = self.COFFEE_PREP_GRASP_DWELL[self.PROMPT_LIFT]
         prm = replace(NOMINAL, speed=NOMINAL.speed / self.style.speed, slow_speed=NOMINAL.slow_speed / self.style.speed,
-                      approach_height=self.style.approach_height, grasp_dwell=int(self.rng.integers(10, 15)),
+                      approach_height=self.style.approach_height, grasp_dwell=int(self.rng.integers(*dwell)),
                       release_dwell=int(self.rng.integers(8, 12)), settle=int(self.rng.integers(3, 7)))
         scripted_coffee_prep.run(Scripter(_PersonAsEnv(self, world), prm, self.rng))
 

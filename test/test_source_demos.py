@@ -218,8 +218,8 @@ def test_every_shipped_grasp_lifts_within_ten_steps_of_the_close(demos):
                 if not s.name.startswith("grasp"):
                     continue
                 g = d.gripper[s.start_step:s.end_step]
+                assert g.max() > 0, (task, d.name, s.name)  # a grasp skill closes the hand
                 close = s.start_step + int(np.argmax(g > 0))
-                assert g.max() > 0, (task, d.name, s.name)
                 risen = np.nonzero(z[close:] > z[close] + 0.01)[0]
                 rises[(task, d.name, s.name)] = int(risen[0]) if len(risen) else len(z)
     assert {t for t, _, _ in rises} == set(TASK_NAMES)

@@ -25,6 +25,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 from bench.datagen.diagnose import diagnose  # noqa: E402
+from bench.datagen.demo_style import add_settings, make_demos, same_settings, settings  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
 OUT = ROOT / "bench" / "results" / "coffee_lid_push.json"
@@ -35,26 +36,14 @@ KEEP = ("successes", "rate", "failures", "by_source_demo", "joint_at_limit_in_a_
 
 def make_turn_demos(force: bool) -> Path:
     """Ten Coffee demos from the demonstrator with LID_PUSH_TURNS on (made once, or again with --force)."""
-    from skillgen_ros.cli.main import main as cli
-    from skillgen_ros.core.demonstrator import ScriptedDemonstrator
-
-    bags = TURN / "Coffee"
-    if force or not bags.exists():
-        ScriptedDemonstrator.LID_PUSH_TURNS = True
-        try:
-            if cli(["demos", "make", "--task", "Coffee", "--out", str(TURN), "--force"]) != 0:
-                raise SystemExit("could not make the turning demos")
-        finally:
-            ScriptedDemonstrator.LID_PUSH_TURNS = False
-    return bags
+    return make_demos("Coffee", TURN, force, LID_PUSH_TURNS=True)
 
 
 def _kept(a) -> dict:
     """What OUT holds from the same settings that this run keeps: the other variants' results (a run of D2
     keeps D0's) and, with them, their arms' provenance note."""
     old = json.loads(OUT.read_text()) if OUT.exists() else {}
-    if any(old.get(k) != v for k, v in (("seed", a.seed), ("attempts", a.attempts), ("profile", a.profile),
-                                        ("action_noise", a.noise))):
+    if not same_settings(old, a):
         return {"variants": {}}
     variants = {v: r for v, r in old.get("variants", {}).items() if v not in a.variants}
     note = {"arms_relabelled": old["arms_relabelled"]} if variants and "arms_relabelled" in old else {}
@@ -64,16 +53,11 @@ def _kept(a) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variants", nargs="+", default=["D2"])
-    ap.add_argument("--attempts", type=int, default=40)
-    ap.add_argument("--seed", type=int, default=1000)
-    ap.add_argument("--noise", type=float, default=0.05)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--force-demos", action="store_true", help="remake the turning demos")
+    add_settings(ap)
     a = ap.parse_args(argv)
     t0 = time.time()
     arms = {ARMS[0]: make_turn_demos(a.force_demos), ARMS[1]: ROOT / "bags" / "Coffee"}
-    out = {"experiment": __doc__.splitlines()[2].strip(), "machine": machine_info(), "seed": a.seed,
-           "attempts": a.attempts, "profile": a.profile, "action_noise": a.noise, **_kept(a)}
+    out = {"experiment": __doc__.splitlines()[2].strip(), "machine": machine_info(), **settings(a), **_kept(a)}
     for v in a.variants:
         out["variants"][v] = {}
         for arm, bags in arms.items():

@@ -27,6 +27,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 from bench.datagen.diagnose import diagnose  # noqa: E402
+from bench.datagen.demo_style import add_settings, make_demos, same_settings, settings  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
 OUT = ROOT / "bench" / "results" / "grasp_hold.json"
@@ -34,32 +35,20 @@ OLD = ROOT / "out" / "demos" / "grasp_hold"
 ARMS = ("hold, then eased lift (the demos shipped until 2026-12-06)", "prompt lift (shipped since 2026-12-06)")
 KEEP = ("successes", "rate", "failures", "drag_m", "attempts_dragging", "successes_dragging",
         "joint_at_limit_in_a_skill", "wall_seconds", "source_demos")
-SETTINGS = ("seed", "attempts", "profile", "action_noise")
 
 
 def make_old_demos(task: str, force: bool) -> Path:
     """Ten demos of `task` from the demonstrator with PROMPT_LIFT off (made once, or again with --force)."""
-    from skillgen_ros.cli.main import main as cli
-    from skillgen_ros.core.demonstrator import ScriptedDemonstrator
-
-    bags = OLD / task
-    if force or not bags.exists():
-        ScriptedDemonstrator.PROMPT_LIFT = False
-        try:
-            if cli(["demos", "make", "--task", task, "--out", str(OLD), "--force"]) != 0:
-                raise SystemExit(f"could not make the old-style {task} demos")
-        finally:
-            ScriptedDemonstrator.PROMPT_LIFT = True
-    return bags
+    return make_demos(task, OLD, force, PROMPT_LIFT=False)
 
 
 def _kept(a) -> dict:
     """The cells of OUT measured with the same settings that this run does not redo."""
     old = json.loads(OUT.read_text()) if OUT.exists() else {}
-    if any(old.get(k) != getattr(a, k.replace("action_", "")) for k in SETTINGS):
+    if not same_settings(old, a):
         return {}
-    return {c: r for c, r in old.get("cells", {}).items()
-            if not any(c == f"{cell} {m}" for cell in a.cells for m in a.methods)}
+    redone = {f"{cell} {m}" for cell in a.cells for m in a.methods}
+    return {c: r for c, r in old.get("cells", {}).items() if c not in redone}
 
 
 def main(argv=None) -> int:
@@ -67,16 +56,11 @@ def main(argv=None) -> int:
     ap.add_argument("--cells", nargs="+", default=["ThreePieceAssembly/D0", "Coffee/D0", "Square/D1", "Threading/D0"],
                     help="TASK/VARIANT")
     ap.add_argument("--methods", nargs="+", default=["mimicgen", "skillgen"], choices=["mimicgen", "skillgen"])
-    ap.add_argument("--attempts", type=int, default=40)
-    ap.add_argument("--seed", type=int, default=1000)
-    ap.add_argument("--noise", type=float, default=0.05)
-    ap.add_argument("--profile", default="paper")
-    ap.add_argument("--force-demos", action="store_true", help="remake the old-style demos")
+    add_settings(ap)
     a = ap.parse_args(argv)
     t0 = time.time()
-    out = {"experiment": __doc__.splitlines()[0].split(": ", 1)[1], "machine": machine_info(), "seed": a.seed,
-           "attempts": a.attempts, "profile": a.profile, "action_noise": a.noise, "arms": list(ARMS),
-           "cells": _kept(a)}
+    out = {"experiment": __doc__.splitlines()[0].split(": ", 1)[1], "machine": machine_info(), **settings(a),
+           "arms": list(ARMS), "cells": _kept(a)}
     for cell in a.cells:
         task, variant = cell.split("/")
         arms = {ARMS[0]: make_old_demos(task, a.force_demos), ARMS[1]: ROOT / "bags" / task}

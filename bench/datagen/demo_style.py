@@ -1,0 +1,45 @@
+"""What bench/datagen's demo-style experiments share (coffee_lid_push.py, grasp_hold.py): ten demos made with the
+demonstrator in another style, and the settings that decide whether an earlier run's results can be kept."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def make_demos(task: str, out: Path, force: bool, **style) -> Path:
+    """Ten demos of `task` in out/<task> with ScriptedDemonstrator's class attributes `style` set for the run (made
+    once, or again with `force`); the attributes are restored after."""
+    from skillgen_ros.cli.main import main as cli
+    from skillgen_ros.core.demonstrator import ScriptedDemonstrator
+
+    bags = out / task
+    if force or not bags.exists():
+        before = {k: getattr(ScriptedDemonstrator, k) for k in style}
+        for k, v in style.items():
+            setattr(ScriptedDemonstrator, k, v)
+        try:
+            if cli(["demos", "make", "--task", task, "--out", str(out), "--force"]) != 0:
+                raise SystemExit(f"could not make the {task} demos with {style}")
+        finally:
+            for k, v in before.items():
+                setattr(ScriptedDemonstrator, k, v)
+    return bags
+
+
+def add_settings(ap: argparse.ArgumentParser) -> None:
+    """The attempts' settings, shared by both arms of an experiment."""
+    ap.add_argument("--attempts", type=int, default=40)
+    ap.add_argument("--seed", type=int, default=1000)
+    ap.add_argument("--noise", type=float, default=0.05)
+    ap.add_argument("--profile", default="paper")
+    ap.add_argument("--force-demos", action="store_true", help="remake the other style's demos")
+
+
+def settings(a: argparse.Namespace) -> dict:
+    """The run's settings under the JSON's keys."""
+    return {"seed": a.seed, "attempts": a.attempts, "profile": a.profile, "action_noise": a.noise}
+
+
+def same_settings(old: dict, a: argparse.Namespace) -> bool:
+    """Whether an earlier JSON was measured with this run's settings (only then are its results kept)."""
+    return all(old.get(k) == v for k, v in settings(a).items())

@@ -136,3 +136,66 @@ def test_another_contact_models_cells_sit_beside_the_default_models_in_task_orde
     pads["cells"] = pads["cells"][1:]  # a margin cell missing: no margin line
     assert not contact_model_rows(stock, pads)[-1].startswith("- skillgen vs mimicgen")
     assert contact_model_rows(stock, {"cells": []}) == []
+
+
+def test_three_piece_stage_places_each_failure_by_where_piece_1_was_lost():
+    """diagnose --stages for Three Piece Assembly: a piece carried over the base is not seated in it; one seated
+    and later swept off is told apart from one never seated; piece 2's x-y miss is binned in cm."""
+    import numpy as np
+
+    from bench.datagen.attempt_tally import STAGES
+
+    stage = STAGES["ThreePieceAssembly"]
+    table, up = -0.07, 0.15
+
+    def obs(p1, p2):  # per-step (x, y, z) of each piece; the base stays at (0.56, 0, table)
+        n = len(p1)
+        pose = lambda xyz: np.c_[np.asarray(xyz, float), np.tile([0, 0, 0, 1.0], (n, 1))]
+        return {"base_pose": pose([[0.56, 0.0, table]] * n), "piece_1_pose": pose(p1), "piece_2_pose": pose(p2)}
+
+    rest2 = [[0.4, 0.2, table]] * 4
+    assert stage(obs([[0.4, -0.2, table]] * 4, rest2)) == "1 piece_1 never lifted"
+    over = [[0.4, -0.2, table], [0.56, 0.0, up], [0.7, 0.1, up], [0.75, 0.1, table]]
+    assert stage(obs(over, rest2)).startswith("2 piece_1 lifted, never seated; it ends over 5 cm")
+    rim = [[0.4, -0.2, table], [0.56, 0.0, up], [0.59, 0.0, up], [0.59, 0.0, table + 0.02]]
+    assert stage(obs(rim, rest2)).startswith("2 piece_1 lifted, never seated; it ends within 5 cm")
+    swept = [[0.4, -0.2, table], [0.56, 0.0, up], [0.56, 0.0, table], [0.62, 0.05, table]]
+    assert stage(obs(swept, rest2)) == "3 piece_1 on the base, knocked off later"
+    seated = [[0.4, -0.2, table], [0.56, 0.0, up], [0.56, 0.0, table], [0.56, 0.0, table]]
+    assert stage(obs(seated, rest2)) == "4 piece_2 never lifted"
+    beside = [[0.4, 0.2, table], [0.4, 0.2, up], [0.6, 0.0, up], [0.595, 0.0, table + 0.05]]
+    assert stage(obs(seated, beside)) == "5 piece_2 beside piece_1, x-y miss 3-4 cm"
+
+
+def test_slips_measure_how_far_a_held_object_moved_in_the_hand_between_grasp_and_release():
+    """diagnose's in-hand slip: the object's position in the EE frame while held, from 3 steps after the close
+    until the hand opens; a hand that turns with its object is no slip, an object lagging the hand is."""
+    from types import SimpleNamespace
+
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    from bench.datagen.attempt_tally import slips
+    from skillgen_ros.core.tasks import get_task
+
+    spec = get_task("ThreePieceAssembly")
+    n = 20
+    skill = np.r_[[0] * 8, [1] * 12]
+    grip = np.r_[[-1.0] * 5, [1.0] * 12, [-1.0] * 3]  # closes at 5 (grasp skill), opens at 17 (in skill 1)
+    ee = np.c_[np.linspace(0.4, 0.6, n), np.zeros(n), np.full(n, 0.1)]
+    yaw = Rotation.from_euler("z", np.linspace(0.0, 1.0, n)[:, None])
+    below = yaw.apply([0.0, 0.0, -0.03])  # the piece 3 cm below the grasp point, turning with the hand
+    p1 = ee + below
+    p1[12:17, 0] -= 0.015  # lags the hand by 1.5 cm for five steps, while held
+    quat = yaw.as_quat()
+    pose = lambda p: np.c_[p, quat]
+    p2 = np.tile([0.5, 0.2, -0.07, 0, 0, 0, 1.0], (n, 1))
+    ep = SimpleNamespace(labels={"skill_index": skill}, actions_abs=np.c_[np.zeros((n, 7)), grip],
+                         obs={"robot0_eef_pos": ee, "robot0_eef_quat": quat, "piece_1_pose": pose(p1),
+                              "piece_2_pose": p2})
+    out = slips(ep, spec)
+    assert set(out) == {"piece_1"} and abs(out["piece_1"] - 0.015) < 1e-9
+    p1[12:17, 0] += 0.015
+    p1[18:] += 0.1  # moved after the hand opened: not a slip
+    ep.obs["piece_1_pose"] = pose(p1)
+    assert slips(ep, spec)["piece_1"] < 1e-9

@@ -45,6 +45,35 @@ def test_demonstrator_is_deterministic_per_seed_and_succeeds():
     assert step.max() < 0.03, "targets must move smoothly (< 3 cm per 50 ms control period)"
 
 
+def _rise_after_open(rollout) -> int:
+    """Control steps from the (last) open command until the hand is 1 cm higher."""
+    g = np.array([s.gripper_command for s in rollout.steps])
+    z = np.array([s.ee_pose[2] for s in rollout.steps])
+    k = int(np.flatnonzero((g[1:] < 0) & (g[:-1] > 0))[-1]) + 1
+    return int(np.flatnonzero(z[k:] > z[k] + 0.01)[0])
+
+
+def test_prompt_retreat_rises_within_ten_steps_of_the_open_and_changes_nothing_before_it():
+    """PROMPT_RETREAT (off for the shipped demos): the hand is 1 cm up 8-10 steps after the open, inside MimicGen's
+    place-subtask ends (its signal + 5-10 steps); the hold-then-ease style takes 16-22 (bench/datagen/release_hold.py)."""
+    from skillgen_ros.core.sim import SimWorld
+
+    world, before = SimWorld(), ScriptedDemonstrator.PROMPT_RETREAT
+    try:
+        ScriptedDemonstrator.PROMPT_RETREAT = False
+        held = ScriptedDemonstrator("PickPlace", 7).run(world, "D0", 1003)
+        ScriptedDemonstrator.PROMPT_RETREAT = True
+        prompt = ScriptedDemonstrator("PickPlace", 7).run(world, "D0", 1003)
+    finally:
+        ScriptedDemonstrator.PROMPT_RETREAT = before
+        world.close()
+    assert held.success and prompt.success
+    assert _rise_after_open(prompt) <= 10 < 15 < _rise_after_open(held)
+    g = np.array([s.gripper_command for s in held.steps])
+    opened = int(np.flatnonzero((g[1:] < 0) & (g[:-1] > 0))[-1]) + 1
+    assert np.array_equal([s.target for s in held.steps[:opened]], [s.target for s in prompt.steps[:opened]])
+
+
 def test_demos_make_cli_writes_annotated_bags_and_subsets(tmp_path, capsys):
     from skillgen_ros.cli import demos
     from skillgen_ros.core.errors import SkillGenError

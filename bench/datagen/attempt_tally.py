@@ -1,7 +1,8 @@
 """bench/datagen/attempt_tally.py: what bench/datagen/diagnose.py measures in each attempt, and its tally.
 
 Each measure reads one finished attempt's recorded episode (true object poses, joint values, labels):
-how far a failed Coffee / Coffee Prep attempt got, how far a carried object slid before it was lifted,
+how far a failed Coffee / Coffee Prep / Three Piece attempt got, how far a carried object slid before it was lifted,
+how far a held object slipped in the hand,
 which joints met their limits in a skill. `Tally` sums them over a cell.
 """
 from __future__ import annotations
@@ -12,6 +13,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 LIFTED, LID_OPENED = 0.05, 1.3   # m above its start; rad (the demos swing the lid to 1.55-1.8 rad)
+PIECE_LIFTED = 0.02  # m: Three Piece's source demos carry piece_1 22-25 cm up, piece_2 17-19 cm
+NEAR_BASE = 0.05  # m: piece 1 ending this near the base's centre missed the hole (on its rim), not the base
+PIECE_SEATED = 0.01  # m: piece 1 this close to its starting height is down (in the base's hole, on the table)
 
 
 def coffee_prep_stage(obs: dict) -> str:
@@ -57,7 +61,34 @@ def coffee_stage(obs: dict) -> str:
     return "5 lid closed, pod on the holder's rim (top above the lid's underside)"
 
 
-STAGES = {"CoffeePreparation": coffee_prep_stage, "Coffee": coffee_stage}   # tasks whose failures --stages can place
+def three_piece_stage(obs: dict) -> str:
+    """How far a failed Three Piece Assembly attempt got, read against MimicGen's three_piece_assembly.py
+    checks (x-y within 2 cm, piece 2's centre within 2 cm of base z + 8 cm): where piece 1 was lost, or how
+    piece 2 missed piece 1 at the last step (x-y miss in 1 cm bins)."""
+    from skillgen_ros.core.tasks import assembly as A
+
+    base, p1, p2 = (np.asarray(obs[f"{k}_pose"], float)[:, :3] for k in ("base", "piece_1", "piece_2"))
+    # in the base's hole, piece 1 rests on the table as it started (carried over the base, it is higher)
+    on_base = (np.linalg.norm(p1[:, :2] - base[:, :2], axis=1) < A.XY_THRESH) & (p1[:, 2] < p1[0, 2] + PIECE_SEATED)
+    if p1[:, 2].max() - p1[0, 2] < PIECE_LIFTED:
+        return "1 piece_1 never lifted"
+    if not on_base.any():
+        near = np.linalg.norm(p1[-1, :2] - base[-1, :2]) < NEAR_BASE
+        return f"2 piece_1 lifted, never seated; it ends {'within' if near else 'over'} 5 cm of the base's centre"
+    if not on_base[-1]:
+        return "3 piece_1 on the base, knocked off later"
+    if p2[:, 2].max() - p2[0, 2] < PIECE_LIFTED:
+        return "4 piece_2 never lifted"
+    miss = float(np.linalg.norm(p2[-1, :2] - p1[-1, :2]))
+    if miss >= A.XY_THRESH:
+        return f"5 piece_2 beside piece_1, x-y miss {int(miss * 100)}-{int(miss * 100) + 1} cm"
+    if abs(p2[-1, 2] - (base[-1, 2] + A.Z_CORRECT_ABOVE_BASE)) >= A.Z_THRESH:
+        return "6 piece_2 over piece_1, not down (z off by >= 2 cm)"
+    return "7 both placed, a piece still held"
+
+
+STAGES = {"CoffeePreparation": coffee_prep_stage, "Coffee": coffee_stage,   # tasks whose failures --stages can place
+          "ThreePieceAssembly": three_piece_stage}
 DRAGGED = 0.02  # m: an object that slid this far across the table before it was first lifted was dragged
 
 
@@ -80,7 +111,37 @@ def drags(ep, spec) -> dict[str, float]:
     return out
 
 
+SLIPPED = 0.01  # m: a held object this far from where it sat in the hand after the grasp slipped in it
+GRASP_SETTLE = 3  # control steps after the close: the fingers stop on the object by the 3rd
+
+
+def slips(ep, spec) -> dict[str, float]:
+    """Per object that a transfer skill carries: how far it moved in the hand (the EE frame) while held, from
+    GRASP_SETTLE steps after its grasp skill's close until the hand next opens (or the attempt ends)."""
+    from scipy.spatial.transform import Rotation
+
+    carried = {getattr(sk, "attached_object", None) for sk in spec.skills if sk.mode == "transfer"}
+    skill_of, grip = np.asarray(ep.labels["skill_index"]), np.asarray(ep.actions_abs, float)[:, 7] > 0
+    ee_p = np.asarray(ep.obs["robot0_eef_pos"], float)
+    ee_r = Rotation.from_quat(np.asarray(ep.obs["robot0_eef_quat"], float))
+    out = {}
+    for sk in spec.skills:
+        steps = np.flatnonzero((skill_of == sk.index) & grip)
+        if sk.mode != "transit" or sk.object_id not in carried or not steps.size:
+            continue
+        a = steps[0] + GRASP_SETTLE
+        opened = np.flatnonzero(~grip[a:])
+        b = a + (opened[0] if opened.size else len(grip) - a)
+        if b <= a:
+            continue
+        obj = np.asarray(ep.obs[f"{sk.object_id}_pose"], float)[a:b, :3]
+        in_hand = ee_r[a:b].inv().apply(obj - ee_p[a:b])
+        out[sk.object_id] = float(np.linalg.norm(in_hand - in_hand[0], axis=1).max())
+    return out
+
+
 AT_LIMIT = np.radians(1.0)  # a joint within this of its position limit is on it
+JOINT_LIMITS: tuple | None = None  # (lower, upper) the sim enforces, when not core/robot.py's Q_LOWER / Q_UPPER
 
 
 def joints_at_limit(ep) -> list[int]:
@@ -89,10 +150,11 @@ def joints_at_limit(ep) -> list[int]:
     leaves the hand short of its targets."""
     from skillgen_ros.core.robot import Q_LOWER, Q_UPPER
 
+    lower, upper = JOINT_LIMITS or (Q_LOWER, Q_UPPER)
     q = np.asarray(ep.obs["robot0_joint_pos"], float)[np.asarray(ep.labels["mp_step"]) == 0]
     if not len(q):
         return []
-    hit = (q <= Q_LOWER + AT_LIMIT) | (q >= Q_UPPER - AT_LIMIT)
+    hit = (q <= lower + AT_LIMIT) | (q >= upper - AT_LIMIT)
     return [int(j) for j in np.flatnonzero(hit.any(axis=0))]
 
 
@@ -111,6 +173,8 @@ class Tally:
     slides: dict = field(default_factory=lambda: defaultdict(list))  # object -> how far it slid, per attempt
     at_limit: dict = field(default_factory=lambda: defaultdict(lambda: [0, 0]))  # joint -> [attempts, successes]
     dragged: list = field(default_factory=lambda: [0, 0])  # attempts dragging an object, and how many succeeded
+    in_hand: dict = field(default_factory=lambda: defaultdict(list))  # object -> how far it slipped in the hand
+    slipped: list = field(default_factory=lambda: [0, 0])  # attempts in which a held object slipped, successes
 
     def add(self, r, spec, looks, touching) -> None:
         """One attempt's result `r`, with the looks and touch counter diagnose's wrappers recorded during it."""
@@ -125,6 +189,12 @@ class Tally:
         if any(v > DRAGGED for v in moved.values()):
             self.dragged[0] += 1
             self.dragged[1] += ok
+        slid = slips(r.episode, spec) if r.episode is not None else {}
+        for k, v in slid.items():
+            self.in_hand[k].append(v)
+        if any(v > SLIPPED for v in slid.values()):
+            self.slipped[0] += 1
+            self.slipped[1] += ok
         for j in joints_at_limit(r.episode) if r.episode is not None else []:
             self.at_limit[f"panda_joint{j + 1}"][0] += 1
             self.at_limit[f"panda_joint{j + 1}"][1] += ok
@@ -148,6 +218,9 @@ class Tally:
                "drag_m": {k: {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "n": len(v)}
                           for k, v in self.slides.items()},
                "attempts_dragging": self.dragged[0], "successes_dragging": self.dragged[1],
+               "slip_in_hand_m": {k: {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "n": len(v)}
+                                  for k, v in self.in_hand.items()},
+               "attempts_slipping": self.slipped[0], "successes_slipping": self.slipped[1],
                "joint_at_limit_in_a_skill": {k: {"attempts": v[0], "successes": v[1]}
                                              for k, v in sorted(self.at_limit.items())},
                "successful_indices": [i for i, (ok, _) in enumerate(self.look_rows) if ok]}

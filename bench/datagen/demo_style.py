@@ -3,6 +3,7 @@ demonstrator in another style, and the settings that decide whether an earlier r
 from __future__ import annotations
 
 import argparse
+import shutil
 from pathlib import Path
 
 
@@ -19,6 +20,7 @@ def make_demos(task: str, out: Path, force: bool, **style) -> Path:
             setattr(ScriptedDemonstrator, k, v)
         try:
             if cli(["demos", "make", "--task", task, "--out", str(out), "--force"]) != 0:
+                shutil.rmtree(bags, ignore_errors=True)  # a partial set must not pass for the demos next time
                 raise SystemExit(f"could not make the {task} demos with {style}")
         finally:
             for k, v in before.items():

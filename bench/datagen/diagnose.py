@@ -38,7 +38,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 from bench.datagen import source_digest  # noqa: E402
-from bench.datagen.attempt_tally import DRAGGED, STAGES, Tally  # noqa: E402
+from bench.datagen import attempt_tally  # noqa: E402
+from bench.datagen.attempt_tally import DRAGGED, SLIPPED, STAGES, Tally  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 from skillgen_ros.core.planning.start_repair import START_REPAIRS  # noqa: E402
 
@@ -208,6 +209,10 @@ def _label(e: dict, a, noise: float) -> None:
     e["paper_contacts"] = not a.without_paper_contacts
     e["command"] += " --without-paper-contacts" if a.without_paper_contacts else ""
     e["command"] += f" --perception {a.perception}" if a.perception != "ground_truth" else ""
+    e["command"] += f" --bags {a.bags}" if a.bags else ""
+    if a.robosuite_joint_limits:
+        e["joint_limits"] = "robosuite"
+        e["command"] += " --robosuite-joint-limits"
     if a.finger_friction:
         e["finger_friction"] = list(a.finger_friction)
         e["command"] += " --finger-friction {} {}".format(*a.finger_friction)
@@ -222,7 +227,25 @@ def _key(x: dict) -> tuple:
             tuple(x.get("mimicgen_offsets", ())), x.get("augment", False), x.get("pod_mass", 0.0),
             x.get("wrist_backout", True), x.get("paper_contacts", False), x.get("perception", "ground_truth"),
             x.get("look_rule", "latest"),
-            tuple(x.get("finger_friction", ())), (x.get("source_demos") or {}).get("sha256"))
+            tuple(x.get("finger_friction", ())), (x.get("source_demos") or {}).get("sha256"),
+            x.get("joint_limits", "urdf"))
+
+
+def _use_robosuite_joint_limits() -> None:
+    """Every scene the sim builds from here on limits the arm's joints to robosuite's ranges (pybullet enforces
+    changeDynamics' limits under torque control; getJointInfo keeps reporting the URDF's)."""
+    from skillgen_ros.core.robot import ROBOSUITE_Q_LOWER, ROBOSUITE_Q_UPPER
+    from skillgen_ros.core.sim.world import SimWorld
+
+    build = SimWorld._build_scene
+
+    def _build_scene(self, poses, objects):
+        build(self, poses, objects)
+        for j, lo, hi in zip(self.arm, ROBOSUITE_Q_LOWER, ROBOSUITE_Q_UPPER):
+            self.p.changeDynamics(self.robot, j, jointLowerLimit=float(lo), jointUpperLimit=float(hi))
+
+    SimWorld._build_scene = _build_scene
+    attempt_tally.JOINT_LIMITS = (ROBOSUITE_Q_LOWER, ROBOSUITE_Q_UPPER)
 
 
 def main(argv=None) -> int:
@@ -242,6 +265,7 @@ def main(argv=None) -> int:
                     help="replace the task's MimicGen subtask_term_offset_range (an experiment)")
     ap.add_argument("--pod-mass", type=float, default=0.0, metavar="KG",
                     help="Coffee only: the pod's mass instead of coffee.POD_MASS (an experiment: MimicGen's is 0.007)")
+    ap.add_argument("--bags", help="the source demos' folder (default bags/<task>; the entry records its digest)")
     ap.add_argument("--perception", default="ground_truth", choices=["ground_truth", "estimate"],
                     help="estimate: also each look's pose errors against the sim's truth, by outcome")
     ap.add_argument("--without-wrist-backout", action="store_true",
@@ -253,7 +277,12 @@ def main(argv=None) -> int:
                     help="estimate, A/B: latest = a movable object takes every look (LookBeliefs before 2026-12-06)")
     ap.add_argument("--finger-friction", type=float, nargs=2, metavar=("LATERAL", "SPINNING"),
                     help="an experiment: the fingers' pybullet friction instead of sim/world.py's (1.5, 0.01)")
+    ap.add_argument("--robosuite-joint-limits", action="store_true",
+                    help="an experiment: the sim's arm joints limited to robosuite's Panda ranges (core/robot.py "
+                         "ROBOSUITE_Q_LOWER / _UPPER) instead of pybullet_data's URDF's; the planner keeps its own")
     a = ap.parse_args(argv)
+    if a.robosuite_joint_limits:
+        _use_robosuite_joint_limits()
     if a.finger_friction:
         from skillgen_ros.core.sim import world
         world.FINGER_LATERAL_FRICTION, world.FINGER_SPINNING_FRICTION = a.finger_friction
@@ -275,7 +304,8 @@ def main(argv=None) -> int:
     out["machine"] = machine_info()
     for noise in a.noise:
         e = diagnose(a.task, a.variant, a.attempts, noise, a.seed, a.profile, a.method, a.touch, a.stages,
-                     tuple(a.mimicgen_offsets) if a.mimicgen_offsets else None, a.augment, a.perception)
+                     tuple(a.mimicgen_offsets) if a.mimicgen_offsets else None, a.augment, a.perception,
+                     Path(a.bags) if a.bags else None)
         _label(e, a, noise)
         if OUT.exists():  # re-read: another diagnosis may have written its entry since this one started
             out["entries"] = json.loads(OUT.read_text())["entries"]
@@ -285,6 +315,7 @@ def main(argv=None) -> int:
         touch = f" | touching {a.touch}: {e['attempts_touching']} ({e['successes_touching']} succeeded)" if a.touch else ""
         touch += f" | stages {e['task_failed_stages']}" if a.stages else ""
         touch += f" | dragging (> {DRAGGED} m) {e['attempts_dragging']} ({e['successes_dragging']} succeeded)"
+        touch += f" | slipping in the hand (> {SLIPPED} m) {e['attempts_slipping']} ({e['successes_slipping']} succeeded)"
         touch += f" | failed at {e['failures_at_skill']} | plans {e['plans']}"
         touch += f" | joint on its limit in a skill (attempts, successes) {e['joint_at_limit_in_a_skill']}"
         print(f"{a.task} {a.variant} {a.method}{'+IA' if a.augment else ''} noise {noise}: {e['successes']}/{e['attempts']} | by demo {per}{touch}",

@@ -29,6 +29,14 @@ CONTROL_HZ = 20.0  # control steps per second (robosuite's control_freq): one os
 # A comfortable "ready" pose: EE about 0.5 m in front of the base, pointing down.
 Q_HOME = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 1.9, 0.785398])
 
+# robosuite's Panda, for comparison (a deviation docs/tasks.md lists; used by bench/datagen/diagnose.py's
+# --robosuite-joint-limits experiment): models/assets/robots/panda/robot.xml joint ranges (Franka's datasheet:
+# joint 4 never straightens, -0.0698 rad, where pybullet_data's panda.urdf above allows 0.0) and
+# models/robots/manipulators/panda_robot.py init_qpos (its EE 18 cm above the table, ours 49 cm).
+ROBOSUITE_Q_LOWER = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
+ROBOSUITE_Q_UPPER = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
+ROBOSUITE_Q_HOME = np.array([0.0, np.pi / 16, 0.0, -np.pi / 2 - np.pi / 3, 0.0, np.pi - 0.2, np.pi / 4])
+
 # The robot base (panda_link0) sits at the world origin; the table is robosuite's, mounted as robosuite
 # mounts the Panda beside it (robosuite 1.5.2):
 # - models/robots/manipulators/panda_robot.py base_xpos_offset["table"] = (-0.16 - table_length / 2, 0, 0):

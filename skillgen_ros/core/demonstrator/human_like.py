@@ -74,6 +74,17 @@ class ScriptedDemonstrator:
     GRASP_SETTLE_S = {True: 0.15, False: 0.6}
     PROMPT_RISE = (0.03, 0.3)  # m, s
     COFFEE_PREP_GRASP_DWELL = {True: (3, 5), False: (10, 15)}  # control periods, the privileged script's dwell
+    # After opening on a placed object: False (the shipped demos) holds 0.5-0.65 s and eases the retreat in
+    # (min-jerk), the first cm 16-22 steps after the open, past MimicGen's ends of a place subtask (its signal +
+    # 5-10 steps, 10-20 for Nut Assembly), so its next subtask begins with the open hand still down at the placed
+    # object. True rises as soon as the fingers are off it (RELEASE_SETTLE_S, then PROMPT_RISE, then the rest of the
+    # retreat; Coffee Prep's privileged script dwells 3-4 periods): the first cm 8-9 steps after the open. Not
+    # shipped: on Three Piece D0 it stops MimicGen sweeping piece 1 off the base (12 -> 3 of 40 attempts) but
+    # moves the failures on to piece 2 (8 -> 12 of 40 succeed), and the demonstrator fails Nut Assembly's scene
+    # 1002 in this style (bench/datagen/release_hold.py; docs/tasks.md).
+    PROMPT_RETREAT = False
+    RELEASE_SETTLE_S = 0.15
+    COFFEE_PREP_RELEASE_DWELL = {True: (3, 5), False: (8, 12)}  # control periods, the privileged script's dwell
 
     def __init__(self, task: str, seed: int):
         self.task = get_task(task)
@@ -164,6 +175,17 @@ class ScriptedDemonstrator:
     def retreat(self, world, dz: float = 0.10) -> None:
         self.move(world, Pose(self.cmd.position + [0, 0, dz], self.cmd.quaternion), 0.8, tremor=0.5)
 
+    def release(self, world, dz: float = 0.10) -> None:
+        """Open on the placed object and retreat `dz` straight up (see PROMPT_RETREAT)."""
+        if not self.PROMPT_RETREAT:
+            self.gripper(world, OPEN, 0.5)
+            self.retreat(world, dz)
+            return
+        self.gripper(world, OPEN, self.RELEASE_SETTLE_S)
+        rise, seconds = self.PROMPT_RISE
+        self.move(world, Pose(self.cmd.position + [0.0, 0.0, rise], self.cmd.quaternion), seconds, tremor=0.3)
+        self.retreat(world, dz - rise)
+
     # ------------------------------------------------------------------ tasks
     def _place_nut(self, world, nut_id: str, peg_id: str, period: float | None) -> None:
         nut_spec, peg_spec = self.task.object(nut_id), self.task.object(peg_id)
@@ -189,8 +211,7 @@ class ScriptedDemonstrator:
         self.carry_object_to(world, nut_id, nut_at(top[2] + 0.01), T_en, 0.8, tremor=0.3)
         release = nut_at(TABLE_Z + nut_spec.half_extents[2] + NOMINAL.place_drop)
         self.carry_object_to(world, nut_id, release, T_en, 1.0, tremor=0.2)
-        self.gripper(world, OPEN, 0.5)
-        self.retreat(world)
+        self.release(world)
 
     def _place_yaw(self, nut_spec, nut: Pose, peg: Pose, period: float | None) -> float:
         """The nut yaw a person would place with: the peg's symmetry (any yaw on a round peg), turning
@@ -243,8 +264,7 @@ class ScriptedDemonstrator:
         self.maybe_hesitate(world)
         low = Pose(np.r_[xy, floor[2] + milk.half_extents[2] + NOMINAL.place_drop], R.as_quat())
         self.carry_object_to(world, "milk", low, T_em, 1.0, tremor=0.3)
-        self.gripper(world, OPEN, 0.5)
-        self.retreat(world, 0.12)
+        self.release(world, 0.12)
 
     def _threading(self, world) -> None:
         nd = self.task.object("needle")
@@ -308,8 +328,7 @@ class ScriptedDemonstrator:
         self.maybe_hesitate(world)
         self.carry_object_to(world, oid, at(seat_z + PIECE_DROP), T_ep, 1.2, tremor=0.1)
         self.hold(world, 0.2)
-        self.gripper(world, OPEN, 0.5)
-        self.retreat(world)
+        self.release(world)
 
     def _three_piece_assembly(self, world) -> None:
         b, p1 = self.task.object("base"), self.task.object("piece_1")
@@ -345,8 +364,7 @@ class ScriptedDemonstrator:
         self.maybe_hesitate(world)
         self.carry_object_to(world, "coffee_pod", pod_bottom_at(top[2] - POD_RELEASE_IN), T_ep, 1.2, tremor=0.1)
         self.hold(world, 0.2)
-        self.gripper(world, OPEN, 0.5)
-        self.retreat(world, 0.12)
+        self.release(world, 0.12)
         self._close_lid(world, m)
 
     def _close_lid(self, world, m: Pose) -> None:
@@ -372,7 +390,8 @@ class ScriptedDemonstrator:
         dwell = self.COFFEE_PREP_GRASP_DWELL[self.PROMPT_LIFT]
         prm = replace(NOMINAL, speed=NOMINAL.speed / self.style.speed, slow_speed=NOMINAL.slow_speed / self.style.speed,
                       approach_height=self.style.approach_height, grasp_dwell=int(self.rng.integers(*dwell)),
-                      release_dwell=int(self.rng.integers(8, 12)), settle=int(self.rng.integers(3, 7)))
+                      release_dwell=int(self.rng.integers(*self.COFFEE_PREP_RELEASE_DWELL[self.PROMPT_RETREAT])),
+                      settle=int(self.rng.integers(3, 7)))
         scripted_coffee_prep.run(Scripter(_PersonAsEnv(self, world), prm, self.rng))
 
     PLANS: dict[str, Callable] = {"Square": _square, "NutAssembly": _nut_assembly, "PickPlace": _pick_place,

@@ -2,10 +2,10 @@
 
 The human-like demonstrator opens on a placed object, holds 0.5-0.65 s and eases its retreat in (min-jerk): the
 first cm up comes 16-22 control steps after the open. MimicGen ends a place subtask at its signal (robosuite's
-checks: Three Piece's `first_piece_assembled`, Nut Assembly's `on_peg`, both true once the fingers are off the
-object) plus 5-10 steps (10-20 for Nut Assembly; generate_core_configs.py), so its next subtask begins with the
+checks: Three Piece's `first_piece_assembled`, true once no finger touches piece 1, and Nut Assembly's
+`objects_on_pegs`, once the EE is 4.2 cm from the nut) plus 5-10 steps (10-20 for Nut Assembly; generate_core_configs.py), so its next subtask begins with the
 source hand still down at the placed object, and the 5-step interpolation to that subtask's first target, in the
-next object's frame, sweeps the open fingers through it (Three Piece D0: piece 1 knocked off the base in 10 of 40
+next object's frame, sweeps the open fingers through it (Three Piece D0: piece 1 knocked off the base in 12 of 40
 attempts; bench/datagen/diagnose.py --stages). `PROMPT_RETREAT` (core/demonstrator/human_like.py) rises as soon
 as the fingers are off. This makes ten demos per task in the style the shipped bags are not in
 (out/demos/release_hold/<task>) and runs the same attempts (seed, profile, action noise) from both, per method:

@@ -158,6 +158,21 @@ def joints_at_limit(ep) -> list[int]:
     return [int(j) for j in np.flatnonzero(hit.any(axis=0))]
 
 
+def _collect(measured: dict, per_object: dict, attempts: list, threshold: float, ok: int) -> None:
+    """One attempt's per-object distances (drags / slips) into their lists, and [attempts, successes] over
+    `threshold` (the attempt counts once, whichever object went past it)."""
+    for k, v in measured.items():
+        per_object[k].append(v)
+    if any(v > threshold for v in measured.values()):
+        attempts[0] += 1
+        attempts[1] += ok
+
+
+def _spread(per_object: dict) -> dict:
+    return {k: {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "n": len(v)}
+            for k, v in per_object.items()}
+
+
 @dataclass
 class Tally:
     """What diagnose counts over a cell's attempts (one add() per attempt, summary() for the entry)."""
@@ -183,18 +198,9 @@ class Tally:
         if touching and touching[0] > 0:
             self.touched[0] += 1
             self.touched[1] += ok
-        moved = drags(r.episode, spec) if r.episode is not None else {}
-        for k, v in moved.items():
-            self.slides[k].append(v)
-        if any(v > DRAGGED for v in moved.values()):
-            self.dragged[0] += 1
-            self.dragged[1] += ok
-        slid = slips(r.episode, spec) if r.episode is not None else {}
-        for k, v in slid.items():
-            self.in_hand[k].append(v)
-        if any(v > SLIPPED for v in slid.values()):
-            self.slipped[0] += 1
-            self.slipped[1] += ok
+        if r.episode is not None:
+            _collect(drags(r.episode, spec), self.slides, self.dragged, DRAGGED, ok)
+            _collect(slips(r.episode, spec), self.in_hand, self.slipped, SLIPPED, ok)
         for j in joints_at_limit(r.episode) if r.episode is not None else []:
             self.at_limit[f"panda_joint{j + 1}"][0] += 1
             self.at_limit[f"panda_joint{j + 1}"][1] += ok
@@ -215,11 +221,9 @@ class Tally:
                "by_source_demo": {str(k): {"successes": v[0], "attempts": v[1]} for k, v in sorted(self.by_demo.items())},
                "failures": dict(self.reasons.most_common()), "failures_at_skill": dict(sorted(self.at_skill.items())),
                "drag_measure": "from the grasp skill's first step",  # entries without it measured from step 0
-               "drag_m": {k: {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "n": len(v)}
-                          for k, v in self.slides.items()},
+               "drag_m": _spread(self.slides),
                "attempts_dragging": self.dragged[0], "successes_dragging": self.dragged[1],
-               "slip_in_hand_m": {k: {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "n": len(v)}
-                                  for k, v in self.in_hand.items()},
+               "slip_in_hand_m": _spread(self.in_hand),
                "attempts_slipping": self.slipped[0], "successes_slipping": self.slipped[1],
                "joint_at_limit_in_a_skill": {k: {"attempts": v[0], "successes": v[1]}
                                              for k, v in sorted(self.at_limit.items())},

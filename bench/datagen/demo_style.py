@@ -1,8 +1,10 @@
-"""What bench/datagen's demo-style experiments share (coffee_lid_push.py, grasp_hold.py): ten demos made with the
-demonstrator in another style, and the settings that decide whether an earlier run's results can be kept."""
+"""What bench/datagen's demo-style experiments share (coffee_lid_push.py, grasp_hold.py, release_hold.py): ten demos
+made with the demonstrator in another style, the settings that decide whether an earlier run's results can be kept,
+and (the per-cell experiments) the kept cells and one cell's row of arms."""
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 from pathlib import Path
 
@@ -45,3 +47,28 @@ def settings(a: argparse.Namespace) -> dict:
 def same_settings(old: dict, a: argparse.Namespace) -> bool:
     """Whether an earlier JSON was measured with this run's settings (only then are its results kept)."""
     return all(old.get(k) == v for k, v in settings(a).items())
+
+
+def kept_cells(out: Path, a: argparse.Namespace) -> dict:
+    """The "TASK/VARIANT method" cells of the results file `out` measured with the same settings that this run
+    (a.cells x a.methods) does not redo."""
+    old = json.loads(out.read_text()) if out.exists() else {}
+    if not same_settings(old, a):
+        return {}
+    redone = {f"{cell} {m}" for cell in a.cells for m in a.methods}
+    return {c: r for c, r in old.get("cells", {}).items() if c not in redone}
+
+
+def paired_row(cell: str, method: str, arms: dict, a: argparse.Namespace, keep, **diagnose_kw) -> dict:
+    """One "TASK/VARIANT" cell and method: the same attempts (a's settings) from each arm's source demos
+    (arm -> bags folder), `keep`'s keys of each diagnose entry."""
+    from bench.datagen.diagnose import diagnose
+
+    task, variant = cell.split("/")
+    row = {}
+    for arm, bags in arms.items():
+        e = diagnose(task, variant, a.attempts, a.noise, a.seed, a.profile, method=method, bags=bags, **diagnose_kw)
+        row[arm] = {k: e[k] for k in keep if k in e}
+        print(f"{cell} {method} {arm}: {e['successes']}/{a.attempts} {e.get('task_failed_stages', '')}".rstrip(),
+              flush=True)
+    return row

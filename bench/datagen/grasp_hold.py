@@ -26,8 +26,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from bench.datagen.diagnose import diagnose  # noqa: E402
-from bench.datagen.demo_style import add_settings, make_demos, same_settings, settings  # noqa: E402
+from bench.datagen.demo_style import add_settings, kept_cells, make_demos, paired_row, settings  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
 OUT = ROOT / "bench" / "results" / "grasp_hold.json"
@@ -42,15 +41,6 @@ def make_old_demos(task: str, force: bool) -> Path:
     return make_demos(task, OLD, force, PROMPT_LIFT=False)
 
 
-def _kept(a) -> dict:
-    """The cells of OUT measured with the same settings that this run does not redo."""
-    old = json.loads(OUT.read_text()) if OUT.exists() else {}
-    if not same_settings(old, a):
-        return {}
-    redone = {f"{cell} {m}" for cell in a.cells for m in a.methods}
-    return {c: r for c, r in old.get("cells", {}).items() if c not in redone}
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cells", nargs="+", default=["ThreePieceAssembly/D0", "Coffee/D0", "Square/D1", "Threading/D0"],
@@ -60,17 +50,12 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     t0 = time.time()
     out = {"experiment": __doc__.splitlines()[0].split(": ", 1)[1], "machine": machine_info(), **settings(a),
-           "arms": list(ARMS), "cells": _kept(a)}
+           "arms": list(ARMS), "cells": kept_cells(OUT, a)}
     for cell in a.cells:
-        task, variant = cell.split("/")
+        task = cell.split("/")[0]
         arms = {ARMS[0]: make_old_demos(task, a.force_demos), ARMS[1]: ROOT / "bags" / task}
         for method in a.methods:
-            row = {}
-            for arm, bags in arms.items():
-                e = diagnose(task, variant, a.attempts, a.noise, a.seed, a.profile, method=method, bags=bags)
-                row[arm] = {k: e[k] for k in KEEP if k in e}
-                print(f"{cell} {method} {arm}: {e['successes']}/{a.attempts}", flush=True)
-            out["cells"][f"{cell} {method}"] = row
+            out["cells"][f"{cell} {method}"] = paired_row(cell, method, arms, a, KEEP)
     out["command"] = (f".venv/bin/python bench/datagen/grasp_hold.py --cells {' '.join(a.cells)} --methods "
                       f"{' '.join(a.methods)} --attempts {a.attempts} --seed {a.seed}")
     out["wall_seconds"] = time.time() - t0

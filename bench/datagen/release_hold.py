@@ -28,8 +28,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 from bench.datagen.attempt_tally import STAGES  # noqa: E402
-from bench.datagen.diagnose import diagnose  # noqa: E402
-from bench.datagen.demo_style import add_settings, make_demos, same_settings, settings  # noqa: E402
+from bench.datagen.demo_style import add_settings, kept_cells, make_demos, paired_row, settings  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
 OUT = ROOT / "bench" / "results" / "release_hold.json"
@@ -48,15 +47,6 @@ def arm_bags(task: str, force: bool) -> dict[str, Path]:
             ARMS[not shipped]: make_demos(task, OTHER, force, PROMPT_RETREAT=not shipped)}
 
 
-def _kept(a) -> dict:
-    """The cells of OUT measured with the same settings that this run does not redo."""
-    old = json.loads(OUT.read_text()) if OUT.exists() else {}
-    if not same_settings(old, a):
-        return {}
-    redone = {f"{cell} {m}" for cell in a.cells for m in a.methods}
-    return {c: r for c, r in old.get("cells", {}).items() if c not in redone}
-
-
 def _command(cell: str, method: str, a) -> str:
     return (f".venv/bin/python bench/datagen/release_hold.py --cells {cell} --methods {method} --attempts "
             f"{a.attempts} --seed {a.seed} --noise {a.noise} --profile {a.profile}")
@@ -70,9 +60,9 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     t0 = time.time()
     out = {"experiment": __doc__.splitlines()[0].split(": ", 1)[1], "machine": machine_info(), **settings(a),
-           "arms": list(ARMS.values()), "cells": _kept(a)}
+           "arms": list(ARMS.values()), "cells": kept_cells(OUT, a)}
     for cell in a.cells:
-        task, variant = cell.split("/")
+        task = cell.split("/")[0]
         try:
             arms = arm_bags(task, a.force_demos)
         except SystemExit as e:  # the demonstrator failed a scene in the other style: say so, go on
@@ -81,14 +71,8 @@ def main(argv=None) -> int:
             print(f"{cell}: {e}", flush=True)
             continue
         for method in a.methods:
-            row = {"command": _command(cell, method, a)}
-            for arm, bags in arms.items():
-                e = diagnose(task, variant, a.attempts, a.noise, a.seed, a.profile, method=method, bags=bags,
-                             stages=task in STAGES)
-                row[arm] = {k: e[k] for k in KEEP if k in e}
-                print(f"{cell} {method} {arm}: {e['successes']}/{a.attempts} {e.get('task_failed_stages', '')}",
-                      flush=True)
-            out["cells"][f"{cell} {method}"] = row
+            out["cells"][f"{cell} {method}"] = {"command": _command(cell, method, a),
+                                                **paired_row(cell, method, arms, a, KEEP, stages=task in STAGES)}
             OUT.write_text(json.dumps(out, indent=1) + "\n")  # each cell as it finishes
     out["wall_seconds"] = time.time() - t0
     OUT.write_text(json.dumps(out, indent=1) + "\n")

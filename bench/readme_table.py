@@ -225,7 +225,7 @@ def _cell_set(part: str, cells: list[str]) -> str:
 def generation_rows(dg: dict) -> list[tuple[str, str, str, str]]:
     """Success averages over cells both sides have, each beside the paper's mean over those cells."""
     from bench.datagen.source_digest import is_stale
-    from bench.datagen.summary import cell_key, summarize
+    from bench.datagen.summary import cell_key, cells_run, summarize
 
     cells = _cells(dg)
     s = summarize(cells) if cells else {}
@@ -240,7 +240,8 @@ def generation_rows(dg: dict) -> list[tuple[str, str, str, str]]:
                 n = len(g.get("cells", []))
                 what = _cell_set(part, g.get("cells", []))
                 k = sum((name, key, prof) in stale for name in g.get("cells", []))
-                ours = "not run" if g.get("ours") is None else \
+                ran = cells_run(cells, prof, key, part)
+                ours = (f"{ran} cells run; the paper has none of them" if ran else "not run") if g.get("ours") is None else \
                     f"{g['ours']:.1f}% ({n} cells{f', {k} of them {STALE_MARK}' if k else ''})"
                 paper = "" if g.get("paper") is None else f"{g['paper']:.1f}% (same {n} cells)"
                 out.append((f"generation success, {key}, {PROFILE_LABEL[prof]}, {what}", ours, paper, "datagen"))
@@ -350,7 +351,10 @@ def render() -> str:
     lines += [f"| {a} | {b} | {c} | `{DATAGEN if d == 'datagen' else d}.json` |" for a, b, c, d in rows()]
     cells = cell_rows()
     if cells:
-        lines += [""] + cells + contact_model_rows(load("datagen"), load("datagen_robosuite_pads"))
+        from bench.datagen.gaps import gap_rows
+
+        lines += [""] + cells + gap_rows(_cells(load("datagen")))
+        lines += contact_model_rows(load("datagen"), load("datagen_robosuite_pads"))
     from bench.hsp.table import (budget_rows, demos_rows, device_rows, hsp_rows, observation_rows, reg_target_rows,
                                  size_rows, termination_rows)
 

@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from bench.datagen.summary import MARGIN_CELLS, summarize  # noqa: E402
+from bench.datagen.summary import MARGIN_CELLS, cells_run, summarize  # noqa: E402
 
 
 def _cell(task, variant, method, rate, profile="paper", augment=False, used=None):
@@ -24,6 +24,16 @@ def test_averages_cover_shared_cells_only():
     assert s["skillgen_ros"]["skillgen"]["core"]["ours"] == 90.0  # profiles never mix
     assert s["paper_18_variant_average"] == {"mimicgen": 40.7, "skillgen": 75.4, "skillgen_ia": 14.7}
     assert s["paper"]["d1_d2_margin"]["margin"] is None  # not every D1/D2 cell ran
+
+
+def test_cells_run_counts_a_methods_cells_whether_or_not_the_paper_has_them():
+    cells = [_cell("Square", "D1_clutter", "skillgen", 0.2, augment=True),
+             _cell("PickPlace", "clutter", "skillgen", 0.5, augment=True),
+             _cell("Square", "D0", "skillgen", 0.4, augment=True), _cell("Square", "D1_clutter", "skillgen", 0.6)]
+    assert summarize(cells)["paper"]["skillgen+IA"]["clutter"]["ours"] is None  # no paper IA clutter number
+    assert cells_run(cells, "paper", "skillgen+IA", "clutter") == 2
+    assert cells_run(cells, "paper", "skillgen+IA", "core") == 1
+    assert cells_run(cells, "skillgen_ros", "skillgen+IA", "clutter") == 0
 
 
 def test_d1_d2_margin_needs_every_cell_and_reuses_mimicgen_across_profiles():

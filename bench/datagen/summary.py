@@ -86,6 +86,12 @@ def margin(cells: list[dict], profile: str) -> dict:
     return out
 
 
+def cells_run(cells: list[dict], profile: str, key: str, part: str) -> int:
+    """How many of a profile/method's core ("core") or clutter ("clutter") cells ran, the paper's or not."""
+    pred = (lambda t, v: is_clutter(v)) if part == "clutter" else is_core
+    return sum(cell_key(c)[2:] == (key, profile) and pred(c["task"], c["variant"]) for c in view(cells, profile))
+
+
 def candidate_counts(cells: list[dict], profile: str, key: str) -> dict:
     """Initiation candidates used per skill reached, pooled over a profile/method's cells."""
     hist: dict[str, int] = {}

@@ -49,7 +49,7 @@ class SimEnvConfig:
     depth_noise: float = 0.001  # estimate from the same clouds
     video: bool = True  # front view for the run's MP4 (160x120 unless perception renders it; only while capturing)
     # fraction of the Panda's V/A/J limits for planned motions (= graphs.yaml's planner): at full speed
-    # the tracked transit strays from its plan into pegs and the table more often (README, results)
+    # the tracked transit strays from its plan into pegs and the table more often (docs/results_log.md, "Before the faithful tasks")
     velocity_scale: float = 0.7
     seed: int = 0
     contact_model: str = DEFAULT_CONTACT_MODEL  # sim/contact_model.py; its source demos must be made on it

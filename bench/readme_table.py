@@ -240,8 +240,9 @@ def generation_rows(dg: dict) -> list[tuple[str, str, str, str]]:
                 n = len(g.get("cells", []))
                 what = _cell_set(part, g.get("cells", []))
                 k = sum((name, key, prof) in stale for name in g.get("cells", []))
-                ran = cells_run(cells, prof, key, part)
-                ours = (f"{ran} cells run; the paper has none of them" if ran else "not run") if g.get("ours") is None else \
+                ran = cells_run(cells, prof, key, part)  # a method/part the paper has no number for still ran
+                unpaired = f"{ran} cells run; the paper has none of them" if ran else "not run"
+                ours = unpaired if g.get("ours") is None else \
                     f"{g['ours']:.1f}% ({n} cells{f', {k} of them {STALE_MARK}' if k else ''})"
                 paper = "" if g.get("paper") is None else f"{g['paper']:.1f}% (same {n} cells)"
                 out.append((f"generation success, {key}, {PROFILE_LABEL[prof]}, {what}", ours, paper, "datagen"))

@@ -94,6 +94,21 @@ def test_termination_rows_pair_a_retrained_t_with_the_checkpoints_own_at_the_sam
     assert "vs its own" not in termination_rows(data, {})[0] and termination_rows({}, base) == []
 
 
+def test_source_demo_rows_pair_each_method_best_and_how_skill_0_ended():
+    from bench.hsp.table import source_demo_rows
+
+    def cell(wins, step, ends):
+        best = {"successes": wins, "rollouts": 50, "step": step}
+        return {"methods": {"HSP-Class": {"best": best, "evals": [{"step": 4500, "skill_endings": {}},
+                                                                  {"step": step, "skill_endings": {"0": ends}}]}}}
+    old = {"cells": {"Square/D0": cell(36, 13500, {"budget": 37, "termination": 13})}}
+    new = {"cells": {"Square/D0": cell(40, 9000, {"termination": 50})}}
+    (row,) = source_demo_rows(old, new)
+    assert "HSP-Class 36/50 -> 40/50" in row
+    assert "skill 0 ended by T/goal 13, budget 37 -> skill 0 ended by T/goal 50, budget 0" in row
+    assert source_demo_rows(old, {}) == [] and source_demo_rows({}, new) == []
+
+
 def test_both_retrain_scripts_share_one_parser_and_record_the_rerun_command():
     from bench.hsp import retrain_reg, retrain_termination
 

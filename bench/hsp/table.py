@@ -243,3 +243,32 @@ def device_rows(base: dict, *runs: dict) -> list[str]:
                                f"in {n['train_seconds'] / 60:.1f} min ({n['ms_per_train_step']:.1f} ms/step): "
                                + "; ".join(parts) + ".")
     return out
+
+
+def _skill0_endings(cell: dict, method: str) -> str:
+    """How skill 0 ended in the best evaluation: T's (or TAMP's) goal vs the 400-step budget."""
+    b = cell.get("methods", {}).get(method, {}).get("best") or {}
+    e = next((x for x in cell["methods"][method].get("evals", []) if x["step"] == b.get("step")), {})
+    ends = e.get("skill_endings", {}).get("0", {})
+    return f"skill 0 ended by T/goal {ends.get('termination', 0)}, budget {ends.get('budget', 0)}" if ends else ""
+
+
+def source_demo_rows(old: dict, new: dict) -> list[str]:
+    """A cell re-run on data generated from the v2 source demos (`new`: bench/results/hsp_v2.json, same protocol)
+    beside the benchmark's cell from the earlier demos (`old`: hsp.json): best per method and how skill 0 ended
+    (the v2 demos lift as soon as the fingers stop, which may let T see the grasp end; docs/hsp.md)."""
+    out = []
+    for name, c in new.get("cells", {}).items():
+        o = old.get("cells", {}).get(name, {})
+        parts = []
+        for m in METHODS:
+            mine, theirs = c.get("methods", {}).get(m, {}).get("best"), o.get("methods", {}).get(m, {}).get("best")
+            if not mine or not theirs:
+                continue
+            ends = [x for x in (_skill0_endings(o, m), _skill0_endings(c, m)) if x]
+            parts.append(f"{m} {theirs['successes']}/{theirs['rollouts']} -> {mine['successes']}/{mine['rollouts']}"
+                         + (f" ({' -> '.join(ends)})" if len(ends) == 2 else ""))
+        if parts:
+            out.append(f"- {name}, data from the earlier demos -> from the v2 demos (bench/results/hsp_v2.json; "
+                       "same protocol, steps and reset seeds; best checkpoint each): " + "; ".join(parts) + ".")
+    return out

@@ -103,9 +103,14 @@ def test_source_demo_rows_pair_each_method_best_and_how_skill_0_ended():
                                                                   {"step": step, "skill_endings": {"0": ends}}]}}}
     old = {"cells": {"Square/D0": cell(36, 13500, {"budget": 37, "termination": 13})}}
     new = {"cells": {"Square/D0": cell(40, 9000, {"termination": 50})}}
+    old["cells"]["Square/D0"]["methods"]["HSP-TAMP"] = cell(24, 13500, {"budget": 1, "goal": 49})["methods"][
+        "HSP-Class"]
+    new["cells"]["Square/D0"]["methods"]["HSP-TAMP"] = cell(18, 9000, {"goal": 50})["methods"]["HSP-Class"]
     (row,) = source_demo_rows(old, new)
     assert "HSP-Class 36/50 -> 40/50" in row
     assert "skill 0 ended by T/goal 13, budget 37 -> skill 0 ended by T/goal 50, budget 0" in row
+    assert ("HSP-TAMP 24/50 -> 18/50 (skill 0 ended by T/goal 49, budget 1 -> skill 0 ended by T/goal 50, "
+            "budget 0)") in row
     assert source_demo_rows(old, {}) == [] and source_demo_rows({}, new) == []
 
 

@@ -85,9 +85,9 @@ CAUSES: dict[tuple, str] = {
     ("skillgen+IA", "Square", "above"): (
         "the augmented initiations are seldom unreachable here (D0, 40 attempts: the nut grasp's fails 7 of 40, "
         "GOAL_IN_COLLISION 4 and EXECUTION_COLLISION 3; the insertion's 4 of 33, IK_FAILED; 8 of the 29 left jam, "
-        "SkillGen without IA 17 of 200); the paper gives neither where HITL-TAMP hands over to the human (ours: the grasp 5 "
-        "cm from the nut's handle, the insertion 12 cm from the peg's top) nor its planner's margins, so why "
-        "more of its perturbed poses fail is not placed further (docs/tasks.md \"Initiation augmentation\")"),
+        "SkillGen without IA 17 of 200); the paper gives neither where HITL-TAMP hands over to the human (ours: "
+        "the grasp 5 cm from the nut's handle, the insertion 12 cm from the peg's top) nor its planner's margins, "
+        "so why more of its perturbed poses fail is not placed further (docs/tasks.md \"Initiation augmentation\")"),
     ("skillgen+IA", "NutAssembly", "above"): (
         "as Square's: each of the four augmented initiations is reached in 0.65-0.85 of the attempts that come "
         "to it (D0, 40 attempts: 34/40, 28/34, 20/28, 13/20; 4 of the 13 left jam), not the paper's \"large "

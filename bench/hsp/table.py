@@ -250,7 +250,8 @@ def _skill0_endings(cell: dict, method: str) -> str:
     b = cell.get("methods", {}).get(method, {}).get("best") or {}
     e = next((x for x in cell["methods"][method].get("evals", []) if x["step"] == b.get("step")), {})
     ends = e.get("skill_endings", {}).get("0", {})
-    return f"skill 0 ended by T/goal {ends.get('termination', 0)}, budget {ends.get('budget', 0)}" if ends else ""
+    done = ends.get("termination", 0) + ends.get("goal", 0)  # T (HSP-Class/Reg) or the privileged goal (HSP-TAMP)
+    return f"skill 0 ended by T/goal {done}, budget {ends.get('budget', 0)}" if ends else ""
 
 
 def source_demo_rows(old: dict, new: dict) -> list[str]:
@@ -268,7 +269,10 @@ def source_demo_rows(old: dict, new: dict) -> list[str]:
             ends = [x for x in (_skill0_endings(o, m), _skill0_endings(c, m)) if x]
             parts.append(f"{m} {theirs['successes']}/{theirs['rollouts']} -> {mine['successes']}/{mine['rollouts']}"
                          + (f" ({' -> '.join(ends)})" if len(ends) == 2 else ""))
+        ds, net = c.get("datasets", {}).get("hsp", {}), c.get("networks", {}).get("hsp")
+        run = (f"; v2 data {ds.get('demos', '?')} demos from {ds.get('attempts', '?')} attempts, {net['steps']} steps "
+               f"in {net['train_seconds'] / 60:.0f} min" if net else "")
         if parts:
             out.append(f"- {name}, data from the earlier demos -> from the v2 demos (bench/results/hsp_v2.json; "
-                       "same protocol, steps and reset seeds; best checkpoint each): " + "; ".join(parts) + ".")
+                       f"same protocol, steps and reset seeds; best checkpoint each{run}): " + "; ".join(parts) + ".")
     return out

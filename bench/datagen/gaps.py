@@ -67,7 +67,11 @@ CAUSES: dict[tuple, str] = {
         "no size or region for it, docs/tasks.md)"),
     ("mimicgen", "Square", "D1", "above"): _MIMICGEN_SQUARE_D1_D2,
     ("mimicgen", "Square", "D2", "above"): _MIMICGEN_SQUARE_D1_D2,
-    ("mimicgen", "NutAssembly", "above"): "as Square's (pybullet keeps grasps through contacts), not measured here",
+    ("mimicgen", "NutAssembly", "above"): (
+        "D0, 40 attempts (25 succeed): the arm touched the square peg in 14, of which 9 still succeeded, and a nut "
+        "slipped > 1 cm in the hand in 14 of the 15 failures (and 7 successes); panda_joint2 at its limit in 6, none "
+        "succeed. Whether MuJoCo keeps those 9 grasps through the contact is not measured (bench/datagen/diagnose.py "
+        "--method mimicgen --touch square_peg, datagen_diagnosis.json)"),
     ("mimicgen", "Coffee", "above"): (
         "the v2 demos lift as soon as the fingers stop, so MimicGen's grasp subtasks end after the lift (D0 "
         "14/40 -> 36/40 on the same attempts, docs/source_demos.md); why it then beats the paper's MuJoCo runs "

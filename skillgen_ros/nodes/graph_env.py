@@ -84,7 +84,7 @@ class RosGraphEnv(GraphCalls):
                                      QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
         self._wrench = LatestMessage(node, convert.WrenchStamped, "ee_wrench")
         self.kin = PandaKinematics()
-        self.task = ""
+        self.task, self._task_sent = "", ""
         self.scene_objects = []
         self._cloud_floor = None  # perception must use a cloud stamped at or after this
         self._moved = False  # the robot moved since _cloud_floor's frames were taken
@@ -135,9 +135,9 @@ class RosGraphEnv(GraphCalls):
         self._cloud_floor = resp.joint_state.header.stamp  # the reset published frames of this state
         self._reset_ns = ns(resp.joint_state.header.stamp)
         self._moved = False
-        # every reset, not only a new task: perception keeps fixture poses per scene and drops them on this
-        # message (core/perception/fixtures.py `known`); it builds a task's models once, so a repeat is cheap
-        self.task_pub.publish(String(data=task))
+        if task != self._task_sent:  # latched: perception keeps it (and builds its models once)
+            self.task_pub.publish(String(data=task))
+            self._task_sent = task
         self._estimates, self.last_estimate, self._beliefs = {}, None, None
         self.grasps.clear()
         self.robot.new_scene()

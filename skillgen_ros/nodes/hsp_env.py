@@ -72,7 +72,9 @@ class HspGraphEnv(RosGraphEnv):
         self.task = task
         self.scene_objects = [SceneObject(id=o.id, type=o.type, mesh_uri=o.mesh_path, half_extents=list(o.half_extents),
                                           is_fixture=o.is_fixture) for o in spec.objects]
-        self.task_pub.publish(String(data=task))  # every goal: perception drops fixture poses from before (graph_env)
+        if task != self._task_sent:
+            self.task_pub.publish(String(data=task))
+            self._task_sent = task
         self._plan_seed, self._plans = None, 0
         self._estimates = {}
         self.grasps.clear()

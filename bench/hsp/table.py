@@ -190,6 +190,17 @@ def observation_rows(old: dict, new: dict) -> list[str]:
     return out
 
 
+def _paired_bests(base: dict, run: dict) -> list[tuple[str, dict, dict]]:
+    """(method, base cell's best, run cell's best) for each method both cells have a best checkpoint for."""
+    out = []
+    for m in METHODS:
+        theirs = base.get("methods", {}).get(m, {}).get("best")
+        mine = run.get("methods", {}).get(m, {}).get("best")
+        if theirs and mine:
+            out.append((m, theirs, mine))
+    return out
+
+
 # the paper's HSP-Class on 200 SkillGen demos (Appendix "Data scaling", Table table:scaling_mp_class)
 PAPER_CLASS_200 = {"Square/D2": 74.0}
 
@@ -202,11 +213,7 @@ def demos_rows(base: dict, few: dict) -> list[str]:
         b = base.get("cells", {}).get(name, {})
         n = c.get("datasets", {}).get("hsp", {})
         parts = []
-        for m in METHODS:
-            mine = c.get("methods", {}).get(m, {}).get("best")
-            theirs = b.get("methods", {}).get(m, {}).get("best")
-            if not mine or not theirs:
-                continue
+        for m, theirs, mine in _paired_bests(b, c):
             paper = f", paper {PAPER_CLASS_200[name]:g}% on 200" if m == "HSP-Class" and name in PAPER_CLASS_200 else ""
             parts.append(f"{m} {mine['successes']}/{mine['rollouts']} vs {theirs['successes']}/{theirs['rollouts']}{paper}")
         if parts:
@@ -262,10 +269,7 @@ def source_demo_rows(old: dict, new: dict) -> list[str]:
     for name, c in new.get("cells", {}).items():
         o = old.get("cells", {}).get(name, {})
         parts = []
-        for m in METHODS:
-            mine, theirs = c.get("methods", {}).get(m, {}).get("best"), o.get("methods", {}).get(m, {}).get("best")
-            if not mine or not theirs:
-                continue
+        for m, theirs, mine in _paired_bests(o, c):
             ends = [x for x in (_skill0_endings(o, m), _skill0_endings(c, m)) if x]
             parts.append(f"{m} {theirs['successes']}/{theirs['rollouts']} -> {mine['successes']}/{mine['rollouts']}"
                          + (f" ({' -> '.join(ends)})" if len(ends) == 2 else ""))

@@ -39,6 +39,27 @@ def test_latest_message_takes_the_newest_on_demand(ros_node):
         reader.destroy()
 
 
+def test_latest_message_never_returns_the_previous_read_while_a_newer_one_waits(ros_node):
+    """Every read takes the newest sample. Fast DDS hands a sample to a reader of the same participant
+    inside publish(), so it is waiting when the read comes. Through rclpy's executor alone every
+    other latest(0) returned the message of the read before (its handler wakes the next spin_once on
+    the executor's own guard condition): perception then posed Coffee Prep's drawer shut while it was open."""
+    pub = ros_node.create_publisher(Int32, "numbers_every_read", 10)
+    reader = LatestMessage(ros_node, Int32, "numbers_every_read")
+    try:
+        assert wait_for(lambda: pub.get_subscription_count() > 0, 10)
+        pub.publish(Int32(data=0))
+        assert reader.wait_for(lambda m: m is not None and m.data == 0, 5.0) is not None
+        got = []
+        for i in range(1, 21):
+            pub.publish(Int32(data=i))
+            got.append(reader.latest().data)
+        assert got == list(range(1, 21))
+        assert reader.count == 21
+    finally:
+        reader.destroy()
+
+
 def test_latest_message_follows_its_owners_remaps(ros_node):
     import rclpy
 

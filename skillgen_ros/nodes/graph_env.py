@@ -105,10 +105,11 @@ class RosGraphEnv(GraphCalls):
 
     def _take_history_state(self, after_ns: int) -> None:
         """The driver's newest period from state_history. After a replayed skill the joint_states reader
-        (not spun while the skill ran) can hold a period from early in the skill: observations and the
-        next plan's start were that stale state, and the trajectory dragged the arm back to it (Coffee
-        Prep: from the opened drawer's handle to where the pull began, 14 of 20 graph attempts
-        TASK_FAILED vs 6 in-process)."""
+        once held a period from before the skill (LatestMessage returned the previous read's message on
+        every other read until 2026-12-07, nodes/latest.py): observations and the next plan's start were
+        that stale state, and the trajectory dragged the arm back to it (Coffee Prep: from the opened
+        drawer's handle to where the pull began, 14 of 20 graph attempts TASK_FAILED vs 6 in-process).
+        The service answers from the driver's own record, whatever a reader holds."""
         h = self.history.periods(after_ns)
         if len(h["stamps"]):
             i = int(np.argmax(h["stamps"]))

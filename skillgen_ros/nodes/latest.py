@@ -5,7 +5,8 @@ woken for every message: in lockstep the driver publishes hundreds of periods a 
 2-core machine each wakeup of a Python executor costs about a millisecond of someone's time.
 `LatestMessage` keeps a depth-1 KEEP_LAST reader on a private node that no executor spins; the
 middleware retains the newest sample, and `latest()` / `wait_newer()` take it on demand from the
-caller's thread. The topic name is resolved by the owner (its namespace and every remap that
+caller's thread (straight from the reader's handle, then through the executor only to wait: see
+`_take`). The topic name is resolved by the owner (its namespace and every remap that
 applies to it, node-targeted ones included), and the private node takes no command-line
 arguments, so a `__node:=` rename meant for the owner does not also rename it.
 
@@ -37,7 +38,7 @@ class LatestMessage:
                                        context=owner.context, start_parameter_services=False,
                                        use_global_arguments=False)
         self.topic = owner.resolve_topic_name(topic)
-        self._node.create_subscription(msg_type, self.topic, self._on_msg, profile)
+        self._sub = self._node.create_subscription(msg_type, self.topic, self._on_msg, profile)
         self._exec = SingleThreadedExecutor(context=owner.context)
         self._exec.add_node(self._node)
         self._lock = threading.Lock()  # one puller at a time
@@ -50,8 +51,27 @@ class LatestMessage:
         self.msg = msg
         self.count += 1
 
+    def _take(self) -> bool:
+        """Take the reader's newest sample, if one is waiting, straight from its handle.
+
+        Not through the executor alone: a spin_once(0) right after one that took a message wakes on
+        the executor's own guard condition (its handler triggers it) and takes nothing, so every other
+        read returned the message taken the call before (perception posed Coffee Prep's drawer at the
+        previous look's joint values: shut while it was open)."""
+        sub = self._sub
+        with sub.handle:
+            got = sub.handle.take_message(sub.msg_type, sub.raw)
+        if got is None:
+            return False
+        self._on_msg(got[0])
+        return True
+
     def _drain(self, timeout: float) -> None:
-        self._exec.spin_once(timeout_sec=timeout)
+        """Take what is waiting; with nothing waiting and a timeout, wait up to it for a sample."""
+        if self._take() or timeout <= 0.0:
+            return
+        self._exec.spin_once(timeout_sec=timeout)  # its callback takes a sample that arrives; or it woke early
+        self._take()
 
     def snapshot(self) -> tuple[object, int]:
         """(newest message, count) after taking whatever is waiting: call before sending a command

@@ -11,9 +11,10 @@ from scipy.spatial.transform import Rotation  # noqa: E402
 
 from skillgen_ros.core.geometry import Pose  # noqa: E402
 from skillgen_ros.core.perception import cloud  # noqa: E402
-from skillgen_ros.core.perception.fixtures import estimate_with_fixtures  # noqa: E402
+from skillgen_ros.core.perception.fixtures import SceneFixtures, estimate_with_fixtures  # noqa: E402
 from skillgen_ros.core.perception.models import box_model, models_for_objects  # noqa: E402
-from skillgen_ros.core.perception.pipeline import PerceptionStatus, _compatible, estimate_poses  # noqa: E402
+from skillgen_ros.core.perception.pipeline import (EstimatedPose, PerceptionStatus, _compatible,  # noqa: E402
+                                                   estimate_poses)
 from skillgen_ros.core.robot import Q_HOME  # noqa: E402
 from skillgen_ros.core.sim import SimWorld  # noqa: E402
 from skillgen_ros.core.sim.camera import CameraConfig  # noqa: E402
@@ -117,3 +118,26 @@ def test_a_pod_fitted_to_the_machines_holder_is_looked_for_again(world):
     assert np.linalg.norm(res.poses["coffee_pod"].pose.position - truth["coffee_pod"].position) < 0.005
     first = estimate_poses(pts, models, camera_position=cam)
     assert np.linalg.norm(first.poses["coffee_pod"].pose.position - truth["coffee_pod"].position) > 0.1  # the holder
+
+
+def test_fixture_poses_are_kept_per_scene():
+    """The graph's perception node keeps what it saw of the fixtures between looks; a D1/D2 reset moves
+    them, so a look in the next scene must not lend it the last scene's drawer (its removal boxes would
+    sit where the drawer was)."""
+    from types import SimpleNamespace
+
+    specs = {o.id: o for o in get_task("CoffeePreparation").objects}
+    seen = lambda x: SimpleNamespace(poses={"drawer": EstimatedPose(Pose([x, -0.35, 0.0], [0, 0, 0, 1]), 1.0, "drawer"),
+                                            "mug": EstimatedPose(Pose([0.5, 0.1, 0.0], [0, 0, 0, 1]), 1.0, "mug")})
+    mem = SceneFixtures()
+    assert mem.known((10, 0)) == {}
+    mem.update((10, 0), seen(0.71), specs)
+    assert set(mem.known((10, 0))) == {"drawer"}  # fixtures only: a mug moves
+    assert mem.known((52, 300)) == {}  # the next scene starts without the last one's drawer
+    mem.update((10, 0), seen(0.80), specs)  # a late answer from the scene before is not this one's
+    assert mem.known((52, 300)) == {}
+    mem.update((52, 300), seen(0.60), specs)
+    assert mem.known((52, 300))["drawer"].position[0] == pytest.approx(0.60)
+    assert mem.known(None)["drawer"].position[0] == pytest.approx(0.60)  # no scene named: the memory as it is
+    mem.clear()
+    assert mem.known(None) == {}

@@ -87,6 +87,7 @@ class RosGraphEnv(GraphCalls):
         self.task, self._task_sent = "", ""
         self.scene_objects = []
         self._cloud_floor = None  # perception must use a cloud stamped at or after this
+        self._scene_stamp = None  # the reset state's stamp
         self._moved = False  # the robot moved since _cloud_floor's frames were taken
         # plan_to_pose seeds: (reset seed, plans since the reset), as SimGenerationEnv's planner draws
         self._plan_seed: int | None = None
@@ -134,6 +135,7 @@ class RosGraphEnv(GraphCalls):
         self._plan_seed, self._plans = int(seed), 0
         self.scene_objects = list(resp.objects)
         self._cloud_floor = resp.joint_state.header.stamp  # the reset published frames of this state
+        self._scene_stamp = resp.joint_state.header.stamp  # names the scene in perception's looks
         self._reset_ns = ns(resp.joint_state.header.stamp)
         self._moved = False
         if task != self._task_sent:  # latched: perception keeps it (and builds its models once)
@@ -250,6 +252,8 @@ class RosGraphEnv(GraphCalls):
         req = EstimatePoses.Request(object_ids=ids)
         if self._cloud_floor is not None:
             req.newer_than = self._cloud_floor
+        if self._scene_stamp is not None:
+            req.scene = self._scene_stamp  # fixture poses of an earlier scene are not this one's
         return self._call(self.estimate_cli, req, self.t["perception"], "estimate_poses", "PERCEPTION_FAILED"), ids
 
     def _take_estimates(self, resp, required: list[str]) -> dict[str, Pose]:

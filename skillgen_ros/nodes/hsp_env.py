@@ -79,6 +79,8 @@ class HspGraphEnv(RosGraphEnv):
         self._estimates = {}
         self.grasps.clear()
         self._moved = True  # frames from before this goal may be stale: capture first
+        joints = self._joints.latest()  # this goal is a scene of its own: fixtures may have moved since the last
+        self._scene_stamp = joints.header.stamp if joints is not None else None
         self._last_gripper, self._closing = -1.0, -1
 
     def wait_ready_for_deploy(self, timeout: float) -> list[str]:

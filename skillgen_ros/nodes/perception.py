@@ -42,7 +42,7 @@ from skillgen_interfaces.msg import ObjectPose, ObjectPoseArray, PhaseTiming
 from skillgen_interfaces.srv import EstimatePoses
 from skillgen_ros.core import validation as V
 from skillgen_ros.core.errors import InvalidInputError, ParameterError, SkillGenError
-from skillgen_ros.core.perception.fixtures import estimate_with_fixtures
+from skillgen_ros.core.perception.fixtures import SceneFixtures, estimate_with_fixtures
 from skillgen_ros.core.perception.models import models_for_objects
 from skillgen_ros.core.perception.pipeline import EstimatedPose, PerceptionParams, PerceptionStatus
 from skillgen_ros.core.perception.pose import PoseParams
@@ -88,7 +88,7 @@ class PerceptionNode(Node):
         self._model_cache: dict[str, dict] = {}  # task -> its object models
         self._task = ""
         self._object_joints: ObjectJointReader | None = None  # the driver's object_joint_states, on first need
-        self._fixture_poses: dict = {}  # fixtures' poses seen in this scene (core/perception/fixtures.py)
+        self._fixtures = SceneFixtures()  # fixtures' poses seen in this scene (core/perception/fixtures.py)
         self._read_params()
         self.add_on_set_parameters_callback(self._on_params)
 
@@ -184,7 +184,7 @@ class PerceptionNode(Node):
 
     def _on_set_task(self, msg: String) -> None:
         with self._lock:
-            self._fixture_poses = {}  # sent after every reset_scene: a new scene
+            self._fixtures.clear()  # a new task; a request's `scene` tells a new scene of the same task
         try:
             if self._set_task(msg.data):
                 self.get_logger().info(f"task set to {self._task!r}")
@@ -194,7 +194,7 @@ class PerceptionNode(Node):
     # ------------------------------------------------------------------ service
     def _on_estimate(self, req: EstimatePoses.Request, res: EstimatePoses.Response) -> EstimatePoses.Response:
         try:
-            status, msg, poses, obstacles, timings = self._estimate(list(req.object_ids), req.newer_than)
+            status, msg, poses, obstacles, timings = self._estimate(list(req.object_ids), req.newer_than, _scene(req.scene))
         except Exception as e:  # noqa: BLE001 - a bug must not take the node down; report it
             self.get_logger().error(f"estimate_poses failed: {e!r}")
             status, msg, poses, obstacles, timings = S.INTERNAL_ERROR, repr(e), {}, np.zeros((0, 3)), {}
@@ -219,7 +219,7 @@ class PerceptionNode(Node):
             return self._front.latest()
         return self._front.wait_for(lambda m: m is not None and Time.from_msg(m.header.stamp) >= floor, wait)
 
-    def _estimate(self, object_ids: list[str], newer_than=None):
+    def _estimate(self, object_ids: list[str], newer_than=None, scene=None):
         if len(object_ids) > V.MAX_ITEMS or any(not i or len(i) > V.MAX_NAME for i in object_ids):
             # EstimatePoses has no INVALID_REQUEST status; a name no task can have is a missing object
             return (S.OBJECT_MISSING, f"object_ids must be at most {V.MAX_ITEMS} non-empty names of at most "
@@ -264,11 +264,16 @@ class PerceptionNode(Node):
                 self._object_joints = ObjectJointReader(self)
             joints = self._object_joints.values()
         with self._lock:
-            known = dict(self._fixture_poses)
+            known = self._fixtures.known(scene)
         r = estimate_with_fixtures(pts, models, specs, self.params, camera, object_ids or None, joints, known=known)
-        with self._lock:  # fixtures do not move: kept until the next perception/set_task (a new scene)
-            self._fixture_poses.update({i: e.pose for i, e in r.poses.items() if specs[i].is_fixture})
+        with self._lock:  # fixtures do not move within a scene
+            self._fixtures.update(scene, r, specs)
         return r.status, r.message, r.poses, r.obstacles, r.timings
+
+
+def _scene(stamp) -> tuple[int, int] | None:
+    """EstimatePoses' `scene` as a key; zero: None (the node's own memory)."""
+    return (stamp.sec, stamp.nanosec) if (stamp.sec or stamp.nanosec) else None
 
 
 def object_pose_msg(oid: str, e: EstimatedPose) -> ObjectPose:

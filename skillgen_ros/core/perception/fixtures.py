@@ -9,7 +9,7 @@ required object is missing and an articulated fixture was found, its parts and l
 current joint values, the points inside them (plus a few mm) are dropped, and every movable object is
 identified again in what is left. An opened drawer is itself not found (its model shows it shut), so a
 fixture seen before lends its earlier pose (`known`: fixtures do not move; the caller keeps them per
-scene). On Coffee Prep D0 seeds 0-2 with the drawer 20 cm open this finds the
+scene, e.g. in a SceneFixtures). On Coffee Prep D0 seeds 0-2 with the drawer 20 cm open this finds the
 pod within 1 mm; without the removal it is missing in all three.
 """
 from __future__ import annotations
@@ -64,3 +64,28 @@ def estimate_with_fixtures(points: np.ndarray, models: Mapping[str, ObjectModel]
                    (PerceptionStatus.OBJECT_MISSING, f"not found in view: {still} (also without {found}'s points)"))
     return PerceptionResult(status, msg, poses, first.obstacles, first.clusters, first.unknown_clusters, first.table,
                             {**first.timings, "fixtures_second_look": second.timings.get("total", 0.0)})
+
+
+class SceneFixtures:
+    """Fixture poses seen in one scene, for `known` above: fixtures do not move within a scene, but
+    the next scene (a D1/D2 reset) puts them elsewhere, and a pose kept from it would pose the
+    removal boxes there. A look names its scene (the graph: the reset state's stamp); a look in
+    another scene starts from nothing. `scene=None` keeps what was seen until clear() (a caller
+    that cannot name its scene)."""
+
+    def __init__(self):
+        self.scene, self.poses = None, {}
+
+    def known(self, scene=None) -> dict[str, Pose]:
+        """The poses seen so far in `scene` (forgetting another scene's)."""
+        if scene is not None and scene != self.scene:
+            self.scene, self.poses = scene, {}
+        return dict(self.poses)
+
+    def update(self, scene, result: PerceptionResult, specs: Mapping[str, ObjectSpec]) -> None:
+        """Keep the fixtures `result` found in `scene` (only if it is still the current one)."""
+        if scene is None or scene == self.scene:
+            self.poses.update({i: e.pose for i, e in result.poses.items() if specs[i].is_fixture})
+
+    def clear(self) -> None:
+        self.scene, self.poses = None, {}

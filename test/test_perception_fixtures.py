@@ -127,8 +127,11 @@ def test_fixture_poses_are_kept_per_scene():
     from types import SimpleNamespace
 
     specs = {o.id: o for o in get_task("CoffeePreparation").objects}
-    seen = lambda x: SimpleNamespace(poses={"drawer": EstimatedPose(Pose([x, -0.35, 0.0], [0, 0, 0, 1]), 1.0, "drawer"),
-                                            "mug": EstimatedPose(Pose([0.5, 0.1, 0.0], [0, 0, 0, 1]), 1.0, "mug")})
+
+    def seen(x):  # a look's result: the drawer at x, and a mug
+        return SimpleNamespace(poses={"drawer": EstimatedPose(Pose([x, -0.35, 0.0], [0, 0, 0, 1]), 1.0, "drawer"),
+                                      "mug": EstimatedPose(Pose([0.5, 0.1, 0.0], [0, 0, 0, 1]), 1.0, "mug")})
+
     mem = SceneFixtures()
     assert mem.known((10, 0)) == {}
     mem.update((10, 0), seen(0.71), specs)

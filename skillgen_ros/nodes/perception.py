@@ -194,7 +194,8 @@ class PerceptionNode(Node):
     # ------------------------------------------------------------------ service
     def _on_estimate(self, req: EstimatePoses.Request, res: EstimatePoses.Response) -> EstimatePoses.Response:
         try:
-            status, msg, poses, obstacles, timings = self._estimate(list(req.object_ids), req.newer_than, _scene(req.scene))
+            status, msg, poses, obstacles, timings = self._estimate(list(req.object_ids), req.newer_than,
+                                                                    _scene(req.scene))
         except Exception as e:  # noqa: BLE001 - a bug must not take the node down; report it
             self.get_logger().error(f"estimate_poses failed: {e!r}")
             status, msg, poses, obstacles, timings = S.INTERNAL_ERROR, repr(e), {}, np.zeros((0, 3)), {}

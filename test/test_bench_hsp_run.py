@@ -112,6 +112,10 @@ def test_source_demo_rows_pair_each_method_best_and_how_skill_0_ended():
     assert ("HSP-TAMP 24/50 -> 18/50 (skill 0 ended by T/goal 49, budget 1 -> skill 0 ended by T/goal 50, "
             "budget 0)") in row
     assert source_demo_rows(old, {}) == [] and source_demo_rows({}, new) == []
+    new["cells"]["Square/D0"]["networks"] = {"hsp": {"steps": 4500, "budget_steps": 13500, "finished": False,
+                                                     "train_seconds": 540.0}}
+    (row,) = source_demo_rows(old, new)  # a session ended mid-run: the row must not read as the full budget's
+    assert "UNFINISHED: 4500 of 13500 steps so far" in row and "same protocol, steps" not in row
 
 
 def test_both_retrain_scripts_share_one_parser_and_record_the_rerun_command():

@@ -276,7 +276,11 @@ def source_demo_rows(old: dict, new: dict) -> list[str]:
         ds, net = c.get("datasets", {}).get("hsp", {}), c.get("networks", {}).get("hsp")
         run = (f"; v2 data {ds.get('demos', '?')} demos from {ds.get('attempts', '?')} attempts, {net['steps']} steps "
                f"in {net['train_seconds'] / 60:.0f} min" if net else "")
+        # a cell still training (a session ended mid-run) says so: its best is not the full budget's
+        how = ("same protocol, steps and reset seeds; best checkpoint each" if not net or net.get("finished", True) else
+               f"UNFINISHED: {net['steps']} of {net.get('budget_steps', '?')} steps so far, same protocol and reset "
+               f"seeds; best checkpoint so far each")
         if parts:
             out.append(f"- {name}, data from the earlier demos -> from the v2 demos (bench/results/hsp_v2.json; "
-                       f"same protocol, steps and reset seeds; best checkpoint each{run}): " + "; ".join(parts) + ".")
+                       f"{how}{run}): " + "; ".join(parts) + ".")
     return out

@@ -50,6 +50,7 @@ from skillgen_ros.nodes.convert import cloud_to_points, points_to_cloud, pose_fr
 from skillgen_ros.nodes.driver_joints import ObjectJointReader
 from skillgen_ros.nodes.latest import LatestMessage
 from skillgen_ros.nodes.runtime import run_node
+from skillgen_ros.nodes.state_history import ns
 
 S = PerceptionStatus
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -194,8 +195,8 @@ class PerceptionNode(Node):
     # ------------------------------------------------------------------ service
     def _on_estimate(self, req: EstimatePoses.Request, res: EstimatePoses.Response) -> EstimatePoses.Response:
         try:
-            status, msg, poses, obstacles, timings = self._estimate(list(req.object_ids), req.newer_than,
-                                                                    _scene(req.scene))
+            scene = ns(req.scene) or None  # the reset's stamp names the scene; zero: the node's own memory
+            status, msg, poses, obstacles, timings = self._estimate(list(req.object_ids), req.newer_than, scene)
         except Exception as e:  # noqa: BLE001 - a bug must not take the node down; report it
             self.get_logger().error(f"estimate_poses failed: {e!r}")
             status, msg, poses, obstacles, timings = S.INTERNAL_ERROR, repr(e), {}, np.zeros((0, 3)), {}
@@ -270,11 +271,6 @@ class PerceptionNode(Node):
         with self._lock:  # fixtures do not move within a scene
             self._fixtures.update(scene, r, specs)
         return r.status, r.message, r.poses, r.obstacles, r.timings
-
-
-def _scene(stamp) -> tuple[int, int] | None:
-    """EstimatePoses' `scene` as a key; zero: None (the node's own memory)."""
-    return (stamp.sec, stamp.nanosec) if (stamp.sec or stamp.nanosec) else None
 
 
 def object_pose_msg(oid: str, e: EstimatedPose) -> ObjectPose:

@@ -16,11 +16,12 @@ NOT_PLACED = "not placed"
 
 # measured on both cells at once (40 attempts each), so one text for both
 _MIMICGEN_SQUARE_D1_D2 = (
-    "its failures here are the nut slipping in the hand (> 1 cm in 5 of D1's 5 failed attempts of 40, 1 of the "
-    "35 successes) and, on D2, the shoulder at its limit (panda_joint2 in 5 of 40, none succeed; slips in 6 of "
-    "its 9 failures); the arm touched the peg in 4 and 6 of 40, half of them succeeded, so contacts explain "
-    "little; how often MuJoCo's grasp of the handle slips in the same replays is not measured "
-    "(bench/datagen/diagnose.py --method mimicgen --touch square_peg, datagen_diagnosis.json)")
+    "not the engine: the same 40 attempts run in MuJoCo (robosuite 1.5.2's Square, its OSC, nut, peg and "
+    "success check, its gripper closing at once as ours) succeed 28 and 27 times (pybullet 32 and 24; paired "
+    "27 both / 5 pybullet only / 1 MuJoCo only on D1; our nut in MuJoCo 28 and 28); with robosuite's gripper "
+    "speed 13 and 12 (32.5 / 30%) because our scripted demos lift before its fingers close: so the source "
+    "demos (scripted in pybullet, the paper's by human teleoperation), not measured further "
+    "(bench/datagen/mujoco_crosscheck.py, mujoco_crosscheck*.json; docs/tasks.md)")
 
 # (method key, task, direction) -> cause; (method key, task, variant, direction) overrides it for one cell.
 CAUSES: dict[tuple, str] = {
@@ -61,10 +62,16 @@ CAUSES: dict[tuple, str] = {
         "200 are IK_FAILED on the mug grasp's transit, and TASK_FAILED falls (53 -> 36) as fewer attempts reach "
         "the end (docs/coffee_prep.md); the paper gives no failure breakdown, so the rest is not placed"),
     ("mimicgen", "Square", "above"): (
-        "pybullet keeps a grasp through contacts MuJoCo breaks: measured in Square D1_clutter (60 attempts: 34 "
-        "pushed the arm against the obstacle, 17 of them still succeeded; bench/results/datagen_diagnosis.json); "
-        "not measured on the cells without the obstacle; the clutter cells' obstruction is ours (the paper gives "
-        "no size or region for it, docs/tasks.md)"),
+        "the arm pushes against the obstacle and the grasp holds: Square D1_clutter, 60 attempts, 34 pushed the arm "
+        "against it and 17 of them still succeeded (bench/results/datagen_diagnosis.json); whether MuJoCo would keep "
+        "those grasps is not run (without the obstacle it places as often as pybullet: "
+        "bench/datagen/mujoco_crosscheck.py); the clutter cells' obstruction is ours (the paper gives no size or "
+        "region for it, docs/tasks.md)"),
+    ("mimicgen", "Square", "D0", "above"): (
+        "not the engine: the same 40 attempts succeed 40 times in MuJoCo (robosuite 1.5.2's Square, its gripper "
+        "closing at once as ours; pybullet 39), 20 with robosuite's gripper speed (our scripted demos lift "
+        "before its fingers close); the rest is the source demos (bench/datagen/mujoco_crosscheck.py, "
+        "mujoco_crosscheck.json; docs/tasks.md)"),
     ("mimicgen", "Square", "D1", "above"): _MIMICGEN_SQUARE_D1_D2,
     ("mimicgen", "Square", "D2", "above"): _MIMICGEN_SQUARE_D1_D2,
     ("mimicgen", "NutAssembly", "above"): (

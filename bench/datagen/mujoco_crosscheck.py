@@ -20,8 +20,10 @@ mesh ends 0.72 cm beyond panda_grasptarget, robosuite's finger mesh 0.07 cm beyo
 (a demo's nut grasp, 0.9 cm into the 2 cm nut in pybullet, closes on air). `--tip-align` (the default) moves
 robosuite's grip site that much further along the approach axis, so the fingertips land where ours do;
 measured from both models at start. The peg keeps robosuite's body z (its box is 20 cm
-tall, centred 3 cm below the top of the table; on_peg reads only its x, y); the nut's body frame is
-robosuite's (ring centre at the origin, handle along +x), as ours.
+tall, centred 3 cm below the top of the table; on_peg reads only its x, y); robosuite's nut body is placed
+at our nut's `body_origin` keypoint (the ring centre, 2.75 cm from our nut frame's origin along the handle
+axis), handle along +x in both. `--nut ours` puts our nut's boxes and mass there instead (our_nut_xml).
+Results and what they mean: docs/tasks.md "MimicGen's Square replays in MuJoCo".
 
 robosuite and MuJoCo are not project dependencies; install them beside the venv, not into it:
     .venv/bin/python -m pip install --target out/mujoco_site --no-deps robosuite==1.5.2 mujoco==3.3.0 \

@@ -56,6 +56,7 @@ from skillgen_ros.core.geometry import Pose  # noqa: E402
 from skillgen_ros.core.robot import Q_HOME, TABLE_Z  # noqa: E402
 from skillgen_ros.core.skills.actions import pose_to_delta_action  # noqa: E402
 from skillgen_ros.core.tasks import get_task  # noqa: E402
+from skillgen_ros.core.tasks.objects import square_nut  # noqa: E402
 
 ARM = [f"robot0_joint{i}" for i in range(1, 8)]
 FINGERS = ["gripper0_right_finger_joint1", "gripper0_right_finger_joint2"]
@@ -67,7 +68,7 @@ def our_nut_xml(path: Path) -> Path:
     """robosuite's square-nut.xml with our nut's boxes and mass (core/tasks/objects.py square_nut) in place of
     its own, keeping its contact parameters (solimp, solref, friction, condim) and sites: the same object in
     both engines. The body frame is the ring centre, as robosuite's (on_peg reads it)."""
-    nut = {o.id: o for o in get_task("Square").objects_for("D0")}["square_nut"]
+    nut = square_nut()
     origin = np.asarray(nut.keypoint("body_origin"), float)
     volume = sum(8 * float(np.prod(pt.size)) for pt in nut.parts)
     geoms = []
@@ -157,9 +158,8 @@ class RobosuiteSquareEnv:
         self.C = Tz @ self.C  # ee = site @ C: the site sits tip_shift further along the approach for the same ee
         self.peg_z = float(m.body_pos[self.peg][2])
         self.nut_mass = float(m._model.body_subtreemass[m.body_name2id("SquareNut_main")])
-        self.nut_origin = np.asarray({o.id: o for o in get_task("Square").objects_for("D0")}["square_nut"].keypoint("body_origin"), float)
+        self.nut_origin = np.asarray(square_nut().keypoint("body_origin"), float)
         self.scene_poses: dict[str, Pose] = {}
-        self.task = None
 
     def _set_gripper_speed(self, speed: float) -> None:
         """robosuite's PandaGripper moves its command by `speed` a step (0.2: closed in 10 steps); ours
@@ -213,8 +213,7 @@ class RobosuiteSquareEnv:
 
     # -- GenerationEnv
     def reset(self, task: str, variant: str, seed: int):
-        self.task = get_task(task)
-        poses = self.task.sample_reset(variant, np.random.default_rng(seed))  # as sim/world.py samples
+        poses = get_task(task).sample_reset(variant, np.random.default_rng(seed))  # as sim/world.py samples
         self.env.reset()
         sim = self.env.sim
         peg = poses["square_peg"]

@@ -46,7 +46,7 @@ from skillgen_ros.core.planning.start_repair import START_REPAIRS  # noqa: E402
 OUT = ROOT / "bench" / "results" / "datagen_diagnosis.json"
 
 
-def _count_touches(env, body: str) -> list[int]:
+def count_touches(env, body: str) -> list[int]:
     """Wrap env.step to count the control steps in which the robot touches `body` (pybullet
     contact points): counter[0] is reset by the caller before each attempt."""
     counter = [0]
@@ -164,7 +164,7 @@ def diagnose(task: str, variant: str, attempts: int, noise: float, seed: int, pr
                      action_noise=noise, augment=augment, output_dir="/nonexistent").config()
     env = SimGenerationEnv(SimEnvConfig(perception=perception, seed=seed, video=False))
     tally = Tally(task, stages)
-    touching = _count_touches(env, touch) if touch else None
+    touching = count_touches(env, touch) if touch else None
     repairs = _count_start_repairs(env)
     looks = _record_look_errors(env) if perception == "estimate" else None
     t0 = time.perf_counter()

@@ -36,7 +36,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from bench.datagen.diagnose import _count_touches  # noqa: E402
+from bench.datagen.diagnose import count_touches  # noqa: E402
 from bench.datagen.robosuite_env import (ROBOSUITE_GRIPPER_SPEED, ROBOSUITE_TASKS, RobosuiteNutEnv,  # noqa: E402
                                          our_nut_xml, task_objects)
 from skillgen_ros.core.generation.attempt import run_attempt  # noqa: E402
@@ -141,7 +141,7 @@ def main(argv=None) -> int:
     pb = SimGenerationEnv(SimEnvConfig(perception="ground_truth", seed=a.seed))
     pb.reset(a.task, "D0", 0)
     pb_tip = pybullet_tip_depth(pb)
-    touching = _count_touches(pb, a.touch) if a.touch else None
+    touching = count_touches(pb, a.touch) if a.touch else None
     nut_xmls = {}
     if a.nut == "ours":
         tmp = Path(tempfile.mkdtemp(prefix="skillgen_nut_"))

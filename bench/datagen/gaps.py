@@ -75,13 +75,12 @@ CAUSES: dict[tuple, str] = {
     ("mimicgen", "Square", "D1", "above"): _MIMICGEN_SQUARE_D1_D2,
     ("mimicgen", "Square", "D2", "above"): _MIMICGEN_SQUARE_D1_D2,
     ("mimicgen", "NutAssembly", "above"): (
-        "not the engine on the attempts run: the cell's first 80 attempts (seed 1000) succeed 44 times both in "
-        "MuJoCo (robosuite 1.5.2's NutAssembly, both nuts, its gripper closing at once as ours) and in pybullet "
-        "(paired 30 both / 14 / 14; 55%); pybullet keeps more grasps through a touch of the square peg, MuJoCo "
-        "places more of the rest; every failure leaves the round nut off its peg. The cell rerun on this machine: "
-        "64% (so attempts 80-199 about 70%, not run in MuJoCo): the excess over 53% is not placed "
-        "(bench/datagen/mujoco_crosscheck.py, mujoco_crosscheck_nut_assembly*.json, "
-        "datagen_nut_d0_mimicgen_znver3.json; docs/tasks.md)"),
+        "not the engine: the cell's first 140 attempts (seed 1000) succeed 85 times in MuJoCo (robosuite 1.5.2's "
+        "NutAssembly, both nuts, its gripper closing at once as ours; 61%, 52-68) and 87 in pybullet (paired 21 "
+        "pybullet only / 19 MuJoCo only); pybullet keeps more grasps through a touch of the square peg, MuJoCo "
+        "places more of the rest; every failure leaves the round nut off its peg. The cell rerun on this CPU: 64%. "
+        "What is left is the source demos, as on Square (not measured further; bench/datagen/mujoco_crosscheck.py, "
+        "mujoco_crosscheck_nut_assembly*.json, datagen_nut_d0_mimicgen_znver3.json; docs/tasks.md)"),
     ("mimicgen", "Coffee", "above"): (
         "the v2 demos lift as soon as the fingers stop, so MimicGen's grasp subtasks end after the lift (D0 "
         "14/40 -> 36/40 on the same attempts, docs/source_demos.md); why it then beats the paper's MuJoCo runs "

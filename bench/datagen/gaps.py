@@ -75,9 +75,9 @@ CAUSES: dict[tuple, str] = {
     ("mimicgen", "Square", "D1", "above"): _MIMICGEN_SQUARE_D1_D2,
     ("mimicgen", "Square", "D2", "above"): _MIMICGEN_SQUARE_D1_D2,
     ("mimicgen", "NutAssembly", "above"): (
-        "not the engine: the cell's first 140 attempts (seed 1000) succeed 85 times in MuJoCo (robosuite 1.5.2's "
-        "NutAssembly, both nuts, its gripper closing at once as ours; 61%, 52-68) and 87 in pybullet (paired 21 "
-        "pybullet only / 19 MuJoCo only); pybullet keeps more grasps through a touch of the square peg, MuJoCo "
+        "not the engine: the cell's 200 attempts (seed 1000) succeed 120 times in MuJoCo (robosuite 1.5.2's "
+        "NutAssembly, both nuts, its gripper closing at once as ours; 60%, 53-67) and 128 in pybullet (paired 36 "
+        "pybullet only / 28 MuJoCo only, p 0.38); pybullet keeps more grasps through a touch of the square peg, MuJoCo "
         "places more of the rest; every failure leaves the round nut off its peg. The cell rerun on this CPU: 64%. "
         "What is left is the source demos, as on Square (not measured further; bench/datagen/mujoco_crosscheck.py, "
         "mujoco_crosscheck_nut_assembly*.json, datagen_nut_d0_mimicgen_znver3.json; docs/tasks.md)"),

@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 
 from bench.datagen.mujoco_crosscheck import pybullet_tip_depth
-from bench.datagen.robosuite_env import ROBOSUITE_TASKS, our_nut_xml, task_objects
+from bench.datagen.robosuite_env import ROBOSUITE_TASKS, our_nut_xml
 from skillgen_ros.core.tasks import get_task
 
 vec = lambda g, k: np.array([float(v) for v in g.get(k).split()])  # noqa: E731
 
 
 def test_our_nut_xml_is_our_nut_about_robosuites_body_origin(tmp_path):
-    nut = task_objects("Square")["square_nut"]
+    nut = get_task("Square").object("square_nut")
     root = ET.parse(our_nut_xml(nut, tmp_path / "nut.xml")).getroot()
     geoms = root.findall(".//geom")
     assert len(geoms) == 5 and {g.get("type") for g in geoms} == {"box"}
@@ -41,7 +41,7 @@ def test_pybullet_fingertips_reach_past_grasptarget_as_the_urdf_says():
 
 def test_our_round_nut_xml_matches_robosuites_octagon_about_the_ring_centre(tmp_path):
     """round-nut.xml: eight 2.25 x 4.5 cm walls centred 4.245 cm from the body origin, handle box at x 0.06."""
-    nut = task_objects("NutAssembly")["round_nut"]
+    nut = get_task("NutAssembly").object("round_nut")
     geoms = ET.parse(our_nut_xml(nut, tmp_path / "round.xml")).getroot().findall(".//geom")
     assert len(geoms) == 9
     radii = sorted(round(float(np.linalg.norm(vec(g, "pos")[:2])), 4) for g in geoms)

@@ -38,7 +38,7 @@ sys.path.insert(0, str(ROOT))
 
 from bench.datagen.diagnose import count_touches  # noqa: E402
 from bench.datagen.robosuite_env import (ROBOSUITE_GRIPPER_SPEED, ROBOSUITE_TASKS, RobosuiteNutEnv,  # noqa: E402
-                                         our_nut_xml, task_objects)
+                                         our_nut_xml)
 from skillgen_ros.core.generation.attempt import run_attempt  # noqa: E402
 from skillgen_ros.core.generation.session import RunRequest  # noqa: E402
 from skillgen_ros.core.robot import TABLE_Z  # noqa: E402
@@ -145,8 +145,7 @@ def main(argv=None) -> int:
     nut_xmls = {}
     if a.nut == "ours":
         tmp = Path(tempfile.mkdtemp(prefix="skillgen_nut_"))
-        objects = task_objects(a.task)
-        nut_xmls = {k: str(our_nut_xml(objects[k], tmp / f"{k}.xml")) for k in ROBOSUITE_TASKS[a.task].nuts}
+        nut_xmls = {k: str(our_nut_xml(task.object(k), tmp / f"{k}.xml")) for k in ROBOSUITE_TASKS[a.task].nuts}
     mj = RobosuiteNutEnv(a.task, pb_tip if a.tip_align else None, nut_xmls=nut_xmls)
     print(f"fingertips beyond the ee point: pybullet {100 * pb_tip:.2f} cm, robosuite {100 * mj.mj_tip_depth:.2f} cm; "
           f"robosuite's site moved {100 * mj.tip_shift:.2f} cm", flush=True)
@@ -158,13 +157,11 @@ def main(argv=None) -> int:
         for speed in a.gripper_speeds:
             mj._set_gripper_speed(speed)
             runs[f"mujoco_gripper_speed_{speed:g}"] = _run(mj, demos, task, v, indices, a.seed)
-        cells[f"{a.task}/{v}"] = {"seconds": round(time.perf_counter() - t0, 1), **_cell(runs),
-                                  **({"pybullet_touching": _touching(runs, a.touch)} if a.touch else {})}
-        print(f"{a.task}/{v}: " + ", ".join(f"{e} {sum(r['success'] for r in rows)}/{len(indices)}"
-                                            for e, rows in runs.items()), flush=True)
+        cell = cells[f"{a.task}/{v}"] = {"seconds": round(time.perf_counter() - t0, 1), **_cell(runs),
+                                         **({"pybullet_touching": _touching(runs, a.touch)} if a.touch else {})}
+        print(f"{a.task}/{v}: " + ", ".join(f"{e} {cell[e]['successes']}/{len(indices)}" for e in runs), flush=True)
     import mujoco
     import robosuite
-    mass = mj.nut_mass["square_nut"] if a.task == "Square" else {k: round(v, 5) for k, v in mj.nut_mass.items()}
     res = {"command": "PYTHONPATH=$PWD .venv/bin/python bench/datagen/mujoco_crosscheck.py " + " ".join(argv or sys.argv[1:]),
            "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
            "versions": {"robosuite": robosuite.__version__, "mujoco": mujoco.__version__},
@@ -172,7 +169,8 @@ def main(argv=None) -> int:
            "ee_offset_site_to_grasptarget": mj.C.round(6).tolist(),
            "fingertip_depth_cm": {"pybullet": round(100 * pb_tip, 3), "robosuite": round(100 * mj.mj_tip_depth, 3),
                                   "site_moved": round(100 * mj.tip_shift, 3)}, "base_in_robosuite": mj.offset.round(6).tolist(),
-           "nut": a.nut, "nut_mass_kg": round(mass, 5) if isinstance(mass, float) else mass,
+           "nut": a.nut, "nut_mass_kg": {k: round(v, 5) for k, v in mj.nut_mass.items()} if len(mj.nut_mass) > 1
+           else round(mj.nut_mass["square_nut"], 5),  # one nut: a number, as the Square files record it
            "tip_align": a.tip_align, "touch": a.touch, "seed": a.seed, "cells": cells}
     Path(a.out).write_text(json.dumps(res, indent=1) + "\n")
     return 0

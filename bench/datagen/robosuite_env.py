@@ -32,7 +32,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from skillgen_ros.core.generation.episode import Observation
-from skillgen_ros.core.geometry import Pose
+from skillgen_ros.core.geometry import Pose, make_T
 from skillgen_ros.core.robot import Q_HOME
 from skillgen_ros.core.skills.actions import pose_to_delta_action
 from skillgen_ros.core.tasks import get_task
@@ -65,11 +65,6 @@ ROBOSUITE_TASKS = {
 }
 _XML_CLASS = {"SquareNut": "SquareNutObject", "RoundNut": "RoundNutObject"}
 _XML_FILE = {"SquareNut": "objects/square-nut.xml", "RoundNut": "objects/round-nut.xml"}
-
-
-def task_objects(task: str) -> dict[str, ObjectSpec]:
-    """Our task's objects by id (the D0 scene: no clutter obstacle)."""
-    return {o.id: o for o in get_task(task).objects_for("D0")}
 
 
 def our_nut_xml(nut: ObjectSpec, path: Path) -> Path:
@@ -120,12 +115,6 @@ def _use_nut_xmls(paths: dict[str, str]) -> None:
         setattr(getattr(xml_objects, cls), "__init__", init)
 
 
-def _T(pos, xmat) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = np.asarray(xmat).reshape(3, 3), pos
-    return T
-
-
 class RobosuiteNutEnv:
     """GenerationEnv (core/generation/attempt.py) over robosuite's Square or Nut Assembly; MimicGen needs no
     planner."""
@@ -172,8 +161,8 @@ class RobosuiteNutEnv:
         self.C = Tz @ self.C  # ee = site @ C: the site sits tip_shift further along the approach for the same ee
         self.peg_z = {k: float(m.body_pos[b][2]) for k, b in self.pegs.items()}
         self.nut_mass = {k: float(m._model.body_subtreemass[m.body_name2id(f"{v}_main")]) for k, v in self.spec.nuts.items()}
-        objects = task_objects(task)
-        self.nut_origin = {k: np.asarray(objects[k].keypoint("body_origin"), float) for k in self.spec.nuts}
+        spec = get_task(task)
+        self.nut_origin = {k: np.asarray(spec.object(k).keypoint("body_origin"), float) for k in self.spec.nuts}
         self.scene_poses: dict[str, Pose] = {}
 
     def _set_gripper_speed(self, speed: float) -> None:
@@ -189,7 +178,7 @@ class RobosuiteNutEnv:
 
     def _site(self) -> np.ndarray:
         d = self.env.sim.data
-        T = _T(d.site_xpos[self.site], d.site_xmat[self.site])
+        T = make_T(d.site_xpos[self.site], d.site_xmat[self.site].reshape(3, 3))
         T[:3, 3] -= self.offset
         return T
 

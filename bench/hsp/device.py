@@ -218,7 +218,8 @@ def train_all(a) -> int:
 
 def evaluate(a) -> int:
     """Join the pieces, then evaluate each returned checkpoint as bench/hsp/run.py would have."""
-    from bench.hsp.run import METHODS, NETWORK, PAPER, Store, _update_table, evaluate_methods
+    from bench.hsp.results import METHODS, NETWORK, PAPER, Store, update_table
+    from bench.hsp.run import evaluate_methods
 
     pieces = sorted(Path(a.pieces).glob("checkpoints.tar.*"))
     log = json.loads((Path(a.pieces) / "train_log.json").read_text())
@@ -252,7 +253,7 @@ def evaluate(a) -> int:
             if any(e["step"] == step for m in methods for e in c["methods"].get(m, {}).get("evals", [])):
                 continue  # resumable: done in an earlier invocation
             evaluate_methods(store, cell, network, work / name / f"step_{step:06d}.pt", step, methods, ns)
-        _update_table(c, METHODS)
+        update_table(c, METHODS)
         store.save()
     return 0
 

@@ -15,7 +15,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 from bench.hsp import shards  # noqa: E402
-from bench.hsp.run import write_json  # noqa: E402
+from bench.hsp.results import write_json  # noqa: E402
 from bench.machine import machine_info  # noqa: E402
 
 

@@ -6,7 +6,7 @@ budget and sizes, training time), since a CPU budget is not robomimic's 200k ste
 """
 from __future__ import annotations
 
-from bench.hsp.run import METHODS as _RUN_METHODS
+from bench.hsp.results import METHODS as _RUN_METHODS
 
 # the paper's Fig. 5 column order: the baseline first; the names are run.py's
 METHODS = ("MimicGen-BC",) + tuple(m for m in _RUN_METHODS if m != "MimicGen-BC")

@@ -115,7 +115,26 @@ def test_source_demo_rows_pair_each_method_best_and_how_skill_0_ended():
     new["cells"]["Square/D0"]["networks"] = {"hsp": {"steps": 4500, "budget_steps": 13500, "finished": False,
                                                      "train_seconds": 540.0}}
     (row,) = source_demo_rows(old, new)  # a session ended mid-run: the row must not read as the full budget's
-    assert "UNFINISHED: 4500 of 13500 steps so far" in row and "same protocol, steps" not in row
+    assert "UNFINISHED: hsp 4500 of 13500 steps so far" in row and "same protocol, steps" not in row
+
+
+def test_v2_rows_name_the_baselines_data_and_the_class_minus_bc_gap_on_the_d1_d2_cells_with_both():
+    from bench.hsp.table import source_demo_rows
+
+    def best(wins):
+        return {"best": {"successes": wins, "rollouts": 50, "success_rate": wins / 50, "step": 13500}, "evals": []}
+    old = {"cells": {"Square/D2": {"methods": {"HSP-Class": best(17), "MimicGen-BC": best(0)}}}}
+    new = {"cells": {"Square/D2": {"methods": {"HSP-Class": best(13), "MimicGen-BC": best(3)},
+                                   "datasets": {"bc": {"demos": 1000, "attempts": 1550}},
+                                   "networks": {"bc": {"steps": 13500, "timed_steps": 9300, "train_seconds": 1350.0,
+                                                       "ms_per_train_step": 145.2, "finished": True}}},
+                     "Square/D0": {"methods": {"HSP-Class": best(40), "MimicGen-BC": best(45)}}}}
+    rows = source_demo_rows(old, new)
+    assert ("v2 data for MimicGen-BC 1000 demos from 1550 attempts, 13500 steps (145 ms a step over the 9300 this "
+            "record timed)") in rows[0] and "MimicGen-BC 0/50 -> 3/50" in rows[0]
+    # D0 is not a D1/D2 cell; the paper's Square D2: HSP-Class 94 - BC 49.3
+    assert rows[-1] == ("- HSP-Class minus MimicGen BC on the v2 data, D1/D2 cells with both (Square/D2): +20.0 points "
+                        "(goal >= +20; the paper on the same cells +44.7).")
 
 
 def test_both_retrain_scripts_share_one_parser_and_record_the_rerun_command():
@@ -267,6 +286,29 @@ def test_a_network_resumed_under_a_new_record_times_only_the_steps_it_trained(tm
     assert [c[0] for c in calls] == [18000, 22500]
     assert (rec["steps"], rec["timed_steps"], rec["train_seconds"]) == (22500, 9000, 200.0)
     assert abs(rec["ms_per_train_step"] - 1000 * 200 / 9000) < 1e-9
+    from bench.machine import cpu_model
+    assert rec["cpu_models"] == [cpu_model()]  # a network resumed on another machine would list both
+
+
+def test_a_run_of_some_methods_keeps_the_other_methods_rows_in_the_cells_table(tmp_path, monkeypatch):
+    """The baseline run after the HSP run (or a second process's part) rewrites the cell's table from every
+    method with a best evaluation, not only its own."""
+    store = _store(tmp_path, {})
+    store.save = lambda: None
+    c = store.cell("Square/D2")
+    c["methods"]["HSP-Class"] = {"evals": [], "best": {"success_rate": 0.26}}
+    monkeypatch.setattr(run, "make_dataset", lambda store, cell, network, a: "data.hdf5")
+
+    def fake_train(store, cell, network, dataset, methods, a):
+        for m in methods:
+            store.cell(cell)["methods"][m] = {"evals": [], "best": {"success_rate": 0.06}}
+
+    monkeypatch.setattr(run, "train_network", fake_train)
+    a = SimpleNamespace(methods=["MimicGen-BC"], demos=1000, rollouts=50, seed=0, budget_steps=13500,
+                        chunk_steps=4500, device="cpu", hidden=400, mlp_hidden=[1024, 1024], hsp_data="ia",
+                        work=str(tmp_path), out=str(tmp_path / "hsp.json"), budget_minutes=0, threads=0)
+    run.run_cell(store, "Square/D2", a)
+    assert {m: r["success_rate"] for m, r in c["table"].items()} == {"HSP-Class": 0.26, "MimicGen-BC": 0.06}
 
 
 def test_a_barren_tail_batch_retries_and_only_a_long_barren_run_gives_up(tmp_path, monkeypatch):

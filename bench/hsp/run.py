@@ -270,7 +270,7 @@ def run_cell(store: Store, cell: str, a) -> None:
         if mine:
             dataset = make_dataset(store, cell, network, a)
             train_network(store, cell, network, dataset, mine, a)
-    update_table(c, methods)
+    update_table(c, METHODS)  # every method the cell has: a run of some methods keeps the others' rows
     store.save()
 
 

@@ -7,6 +7,7 @@ budget and sizes, training time), since a CPU budget is not robomimic's 200k ste
 from __future__ import annotations
 
 from bench.hsp.results import METHODS as _RUN_METHODS
+from bench.hsp.results import PAPER
 
 # the paper's Fig. 5 column order: the baseline first; the names are run.py's
 METHODS = ("MimicGen-BC",) + tuple(m for m in _RUN_METHODS if m != "MimicGen-BC")
@@ -261,6 +262,19 @@ def _skill0_endings(cell: dict, method: str) -> str:
     return f"skill 0 ended by T/goal {done}, budget {ends.get('budget', 0)}" if ends else ""
 
 
+def _v2_network(c: dict, network: str) -> str:
+    """A v2 network's data and training: '; v2 data [MimicGen-BC: ]N demos from M attempts, S steps in T min'."""
+    ds, net = c.get("datasets", {}).get(network, {}), c.get("networks", {}).get(network)
+    if not net:
+        return ""
+    # a network resumed from another run's last.pt: this record timed only the steps it trained (timed_steps)
+    timed = net.get("timed_steps", net["steps"])
+    how = (f"in {net['train_seconds'] / 60:.0f} min" if timed == net["steps"] else
+           f"({net.get('ms_per_train_step', 0):.0f} ms a step over the {timed} this record timed)")
+    return (f"; v2 data{' for MimicGen-BC' if network == 'bc' else ''} {ds.get('demos', '?')} demos from "
+            f"{ds.get('attempts', '?')} attempts, {net['steps']} steps {how}")
+
+
 def source_demo_rows(old: dict, new: dict) -> list[str]:
     """A cell re-run on data generated from the v2 source demos (`new`: bench/results/hsp_v2.json, same protocol)
     beside the benchmark's cell from the earlier demos (`old`: hsp.json): best per method and how skill 0 ended
@@ -273,14 +287,26 @@ def source_demo_rows(old: dict, new: dict) -> list[str]:
             ends = [x for x in (_skill0_endings(o, m), _skill0_endings(c, m)) if x]
             parts.append(f"{m} {theirs['successes']}/{theirs['rollouts']} -> {mine['successes']}/{mine['rollouts']}"
                          + (f" ({' -> '.join(ends)})" if len(ends) == 2 else ""))
-        ds, net = c.get("datasets", {}).get("hsp", {}), c.get("networks", {}).get("hsp")
-        run = (f"; v2 data {ds.get('demos', '?')} demos from {ds.get('attempts', '?')} attempts, {net['steps']} steps "
-               f"in {net['train_seconds'] / 60:.0f} min" if net else "")
+        run = "".join(_v2_network(c, k) for k in ("hsp", "bc"))
         # a cell still training (a session ended mid-run) says so: its best is not the full budget's
-        how = ("same protocol, steps and reset seeds; best checkpoint each" if not net or net.get("finished", True) else
-               f"UNFINISHED: {net['steps']} of {net.get('budget_steps', '?')} steps so far, same protocol and reset "
-               f"seeds; best checkpoint so far each")
+        busy = [(k, n) for k, n in c.get("networks", {}).items() if not n.get("finished", True)]
+        how = ("same protocol, steps and reset seeds; best checkpoint each" if not busy else
+               "UNFINISHED: " + ", ".join(f"{k} {n['steps']} of {n.get('budget_steps', '?')} steps" for k, n in busy)
+               + " so far, same protocol and reset seeds; best checkpoint so far each")
         if parts:
             out.append(f"- {name}, data from the earlier demos -> from the v2 demos (bench/results/hsp_v2.json; "
                        f"{how}{run}): " + "; ".join(parts) + ".")
-    return out
+    return out + _v2_class_minus_bc(new)
+
+
+def _v2_class_minus_bc(new: dict) -> list[str]:
+    """The issue's goal (HSP-Class - MimicGen BC >= 20 points on D1/D2) on the v2 data's cells that have both."""
+    both = [n for n, c in new.get("cells", {}).items() if n.split("/")[1] in ("D1", "D2")
+            and all("best" in c.get("methods", {}).get(m, {}) for m in ("HSP-Class", "MimicGen-BC"))]
+    if not both:
+        return []
+    ours = sum(new["cells"][n]["methods"]["HSP-Class"]["best"]["success_rate"]
+               - new["cells"][n]["methods"]["MimicGen-BC"]["best"]["success_rate"] for n in both) * 100 / len(both)
+    paper = sum(PAPER[n]["HSP-Class"] - PAPER[n]["MimicGen-BC"] for n in both) / len(both)
+    return [f"- HSP-Class minus MimicGen BC on the v2 data, D1/D2 cells with both ({', '.join(both)}): {ours:+.1f} "
+            f"points (goal >= +20; the paper on the same cells {paper:+.1f})."]

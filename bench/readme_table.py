@@ -367,6 +367,7 @@ def render() -> str:
         lines += termination_rows(load("hsp_termination_labels"), load("hsp"))
         lines += demos_rows(load("hsp"), load("hsp_200demos"))
         lines += source_demo_rows(load("hsp"), load("hsp_v2"))
+        lines += budget_rows(load("hsp_v2"), load("hsp_v2_d2_3x"), "bench/results/hsp_v2_d2_3x.json")
         lines += device_rows(load("hsp"), load("hsp_cuda_hsp"), load("hsp_cuda_bc"))
     lines += ["", END]
     return "\n".join(lines)

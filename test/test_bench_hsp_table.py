@@ -69,3 +69,26 @@ def test_v2_rows_name_the_baselines_data_and_the_class_minus_bc_gap_on_the_d1_d2
     # D0 is not a D1/D2 cell; the paper's Square D2: HSP-Class 94 - BC 49.3
     assert rows[-1] == ("- HSP-Class minus MimicGen BC on the v2 data, D1/D2 cells with both (Square/D2): +20.0 points "
                         "(goal >= +20; the paper on the same cells +44.7).")
+
+
+def test_budget_rows_count_the_budgets_own_best_and_list_each_evaluation_past_it():
+    """A longer run under a new --out (resumed from the base's last.pt) holds only the evaluations past the
+    budget: the best so far includes the budget's own, and the row says how many steps this record timed."""
+    from bench.hsp.table import budget_rows
+
+    def ev(step, wins):
+        return {"step": step, "successes": wins, "rollouts": 50}
+    base = {"cells": {"Square/D2": {"networks": {"hsp": {"steps": 13500}},
+                                    "methods": {"HSP-Class": {"best": ev(13500, 13)},
+                                                "HSP-TAMP": {"best": ev(13500, 9)}}}}}
+    longer = {"protocol": {"budget_minutes": 0.0, "budget_steps": 40500},
+              "cells": {"Square/D2": {"networks": {"hsp": {"steps": 22500, "timed_steps": 9000,
+                                                           "train_seconds": 1200.0}},
+                                      "methods": {"HSP-Class": {"evals": [ev(18000, 15), ev(22500, 11)]},
+                                                  "HSP-TAMP": {"evals": [ev(18000, 8)]}}}}}
+    (row,) = budget_rows(base, longer, "bench/results/hsp_v2_d2_3x.json")
+    assert "(bench/results/hsp_v2_d2_3x.json, goal 40500 steps per network; so far hsp: 22500 steps, the last 9000 " \
+           "in 20 min)" in row
+    assert "HSP-TAMP 9/50 -> 9/50 (step 13500; 8 at 18k)" in row
+    assert "HSP-Class 13/50 -> 15/50 (step 18000; 15 at 18k, 11 at 22.5k)" in row
+    assert budget_rows(base, {}) == [] and budget_rows({}, longer) == []

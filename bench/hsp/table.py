@@ -7,7 +7,7 @@ budget and sizes, training time), since a CPU budget is not robomimic's 200k ste
 from __future__ import annotations
 
 from bench.hsp.results import METHODS as _RUN_METHODS
-from bench.hsp.results import PAPER
+from bench.hsp.results import NETWORK, PAPER
 
 # the paper's Fig. 5 column order: the baseline first; the names are run.py's
 METHODS = ("MimicGen-BC",) + tuple(m for m in _RUN_METHODS if m != "MimicGen-BC")
@@ -81,30 +81,40 @@ def hsp_rows(data: dict) -> list[str]:
     return out
 
 
-def budget_rows(base: dict, longer: dict) -> list[str]:
-    """The budget's cost on one cell (issue 23): the same networks trained on past the budget
-    (bench/results/hsp_budget3x.json, which starts as a copy of hsp.json), best success per method
-    at the budget and at the latest evaluation so far."""
+def budget_rows(base: dict, longer: dict, path: str = "bench/results/hsp_budget3x.json") -> list[str]:
+    """The budget's cost on one cell (issue 23): the same networks trained on past the budget (`path`: a copy
+    of the base file trained on, or a new --out that resumed the base's last.pt), best success per method at
+    the budget and the best so far (the budget's own included), then every evaluation past the budget."""
     out = []
     for name, c in longer.get("cells", {}).items():
         b = base.get("cells", {}).get(name, {})
-        nets = c.get("networks", {})
         parts = []
         for m in METHODS:
             evals = c.get("methods", {}).get(m, {}).get("evals", [])
             at = b.get("methods", {}).get(m, {}).get("best")
             if not evals or not at:
                 continue
-            best = max(evals, key=lambda e: e["successes"])
+            best = max([at] + evals, key=lambda e: e["successes"])
+            budget = b.get("networks", {}).get(NETWORK[m], {}).get("steps", at["step"])
+            later = ", ".join(f"{e['successes']} at {e['step'] / 1000:g}k" for e in evals if e["step"] > budget)
             parts.append(f"{m} {at['successes']}/{at['rollouts']} -> {best['successes']}/{best['rollouts']} "
-                         f"(step {best['step']})")
+                         f"(step {best['step']}" + (f"; {later}" if later else "") + ")")
         if parts:
-            mins = {k: f"{v['train_seconds'] / 60:.0f} min, {v['steps']} steps" for k, v in nets.items()}
-            out.append(f"- Longer training, {name} (bench/results/hsp_budget3x.json, goal "
-                       f"{longer.get('protocol', {}).get('budget_minutes', '?')} min per network; so far "
-                       f"{'; '.join(f'{k}: {v}' for k, v in mins.items())}): best at the budget -> best so far: "
-                       + ", ".join(parts) + ".")
+            proto = longer.get("protocol", {})
+            goal = (f"{proto['budget_minutes']} min" if proto.get("budget_minutes") else
+                    f"{proto.get('budget_steps', '?')} steps")
+            sofar = "; ".join(f"{k}: {_trained(v)}" for k, v in c.get("networks", {}).items())
+            out.append(f"- Longer training, {name} ({path}, goal {goal} per network; so far {sofar}): "
+                       "best at the budget -> best so far: " + ", ".join(parts) + ".")
     return out
+
+
+def _trained(net: dict) -> str:
+    """'79 min, 22500 steps', or for a network resumed from another run's last.pt the steps this record timed."""
+    timed = net.get("timed_steps", net["steps"])
+    if timed == net["steps"]:
+        return f"{net['train_seconds'] / 60:.0f} min, {net['steps']} steps"
+    return f"{net['steps']} steps, the last {timed} in {net['train_seconds'] / 60:.0f} min"
 
 
 def size_rows(base: dict, longer: dict, small: dict) -> list[str]:

@@ -248,9 +248,12 @@ def test_a_run_of_some_methods_keeps_the_other_methods_rows_in_the_cells_table(t
     monkeypatch.setattr(run, "train_network", fake_train)
     a = SimpleNamespace(methods=["MimicGen-BC"], demos=1000, rollouts=50, seed=0, budget_steps=13500,
                         chunk_steps=4500, device="cpu", hidden=400, mlp_hidden=[1024, 1024], hsp_data="ia",
-                        work=str(tmp_path), out=str(tmp_path / "hsp.json"), budget_minutes=0, threads=0)
+                        work=str(tmp_path), out=str(tmp_path / "hsp.json"), budget_minutes=0, threads=0,
+                        datasets_from=str(run.ROOT / "bench/results/hsp_v2.json"))
     run.run_cell(store, "Square/D2", a)
     assert {m: r["success_rate"] for m, r in c["table"].items()} == {"HSP-Class": 0.26, "MimicGen-BC": 0.06}
+    # its rerun command runs this part again, on the datasets it was given, not every method on new data
+    assert c["rerun"].endswith("--methods MimicGen-BC --datasets-from bench/results/hsp_v2.json")
 
 
 def test_a_barren_tail_batch_retries_and_only_a_long_barren_run_gives_up(tmp_path, monkeypatch):

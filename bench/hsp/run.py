@@ -21,6 +21,10 @@ Datasets and checkpoints live under --work (out/bench_hsp, not in git).
     # --budget-minutes 25, which gave 13,500 steps; the other cells train those steps, so that the
     # machine's load cannot change how far a network trains (the minutes are checked at chunk ends)
     .venv/bin/python bench/hsp/run.py --budget-steps 13500 --chunk-steps 4500
+    # the budget's cost on v2 data (Square D2): its HSP networks trained on from hsp_v2.json's 13.5k last.pt
+    .venv/bin/python bench/hsp/run.py --cells Square/D2 --methods HSP-TAMP HSP-Class HSP-Reg --budget-steps 40500 \
+        --chunk-steps 4500 --eval-workers 2 --work out/bench_hsp_v2 --datasets-from bench/results/hsp_v2.json \
+        --out bench/results/hsp_v2_d2_3x.json
     # robomimic's full budget where a GPU is lent
     .venv/bin/python bench/hsp/run.py --device cuda --budget-steps 200000 --out bench/results/hsp_cuda.json
     # the budget's cost on one cell (Square D1): the budget vs 3x
@@ -76,6 +80,10 @@ def rerun_command(cell: str, a) -> str:
         keep.append(f"--budget-minutes {a.budget_minutes}")
     if a.threads:
         keep.append(f"--threads {a.threads}")
+    if tuple(a.methods) != METHODS:  # a part run (the baseline beside the HSP methods, a longer HSP run)
+        keep.append(f"--methods {' '.join(a.methods)}")
+    if a.datasets_from:  # without it a rerun would generate its own datasets into the same --work
+        keep.append(f"--datasets-from {os.path.relpath(a.datasets_from, ROOT)}")
     return ".venv/bin/python bench/hsp/run.py " + " ".join(keep)
 
 

@@ -110,10 +110,11 @@ def budget_rows(base: dict, longer: dict, path: str = "bench/results/hsp_budget3
 
 
 def _trained(net: dict) -> str:
-    """'79 min, 22500 steps', or for a network resumed from another run's last.pt the steps this record timed."""
+    """'22500 steps in 79 min', or for a network resumed from another run's last.pt (a record that timed only
+    the steps it trained) '13500 steps, the last 9300 in 22 min'."""
     timed = net.get("timed_steps", net["steps"])
     if timed == net["steps"]:
-        return f"{net['train_seconds'] / 60:.0f} min, {net['steps']} steps"
+        return f"{net['steps']} steps in {net['train_seconds'] / 60:.0f} min"
     return f"{net['steps']} steps, the last {timed} in {net['train_seconds'] / 60:.0f} min"
 
 
@@ -273,16 +274,12 @@ def _skill0_endings(cell: dict, method: str) -> str:
 
 
 def _v2_network(c: dict, network: str) -> str:
-    """A v2 network's data and training: '; v2 data [MimicGen-BC: ]N demos from M attempts, S steps in T min'."""
+    """A v2 network's data and training: '; v2 data [for MimicGen-BC] N demos from M attempts, S steps in T min'."""
     ds, net = c.get("datasets", {}).get(network, {}), c.get("networks", {}).get(network)
     if not net:
         return ""
-    # a network resumed from another run's last.pt: this record timed only the steps it trained (timed_steps)
-    timed = net.get("timed_steps", net["steps"])
-    how = (f"in {net['train_seconds'] / 60:.0f} min" if timed == net["steps"] else
-           f"({net.get('ms_per_train_step', 0):.0f} ms a step over the {timed} this record timed)")
     return (f"; v2 data{' for MimicGen-BC' if network == 'bc' else ''} {ds.get('demos', '?')} demos from "
-            f"{ds.get('attempts', '?')} attempts, {net['steps']} steps {how}")
+            f"{ds.get('attempts', '?')} attempts, {_trained(net)}")
 
 
 def source_demo_rows(old: dict, new: dict) -> list[str]:

@@ -68,14 +68,29 @@ def update_table(c: dict, methods) -> None:
     c["table"] = {m: c["methods"][m]["best"] for m in methods if "best" in c["methods"].get(m, {})}
 
 
+def best_rates(data: dict) -> dict[str, dict[str, float]]:
+    """{method: {cell: best success rate}} over the cells where the method has an evaluation."""
+    return {m: {n: c["methods"][m]["best"]["success_rate"] for n, c in data.get("cells", {}).items()
+                if "best" in c.get("methods", {}).get(m, {})} for m in METHODS}
+
+
+def class_minus_bc(data: dict) -> tuple[list[str], float | None]:
+    """The issue's goal measure: the D1/D2 cells with both HSP-Class and MimicGen BC, and the mean of
+    HSP-Class minus BC over them in points (None without such a cell)."""
+    cells = data.get("cells", {})
+    pair = ("HSP-Class", "MimicGen-BC")
+    hard = [n for n, c in cells.items() if n.split("/")[1] in ("D1", "D2")
+            and all("best" in c.get("methods", {}).get(m, {}) for m in pair)]
+    rate = {m: {n: cells[n]["methods"][m]["best"]["success_rate"] for n in hard} for m in pair}
+    gap = (100 * sum(rate[pair[0]][n] - rate[pair[1]][n] for n in hard) / len(hard)) if hard else None
+    return hard, gap
+
+
 def summary(data: dict) -> dict:
     """Per-method averages over the cells done, and HSP-Class minus BC on the D1/D2 cells."""
-    rates = {m: {n: c["methods"][m]["best"]["success_rate"] for n, c in data["cells"].items()
-                 if "best" in c["methods"].get(m, {})} for m in METHODS}
-    avg = {m: 100 * sum(v.values()) / len(v) for m, v in rates.items() if v}
-    hard = [n for n in rates["HSP-Class"] if n.split("/")[1] in ("D1", "D2") and n in rates["MimicGen-BC"]]
-    gap = (100 * sum(rates["HSP-Class"][n] - rates["MimicGen-BC"][n] for n in hard) / len(hard)) if hard else None
-    return {"average_percent": avg, "hsp_class_minus_bc_d1_d2_points": gap, "cells_done": sorted(data["cells"])}
+    avg = {m: 100 * sum(v.values()) / len(v) for m, v in best_rates(data).items() if v}
+    return {"average_percent": avg, "hsp_class_minus_bc_d1_d2_points": class_minus_bc(data)[1],
+            "cells_done": sorted(data["cells"])}
 
 
 def merge_from(src: Path, dst: Path, a) -> int:

@@ -70,7 +70,6 @@ from bench.hsp.results import (CELLS, METHODS, MODE, NETWORK, PAPER, Store,  # n
 from bench.machine import cpu_model  # noqa: E402
 
 
-
 def rerun_command(cell: str, a) -> str:
     keep = [f"--cells {cell}", f"--demos {a.demos}", f"--rollouts {a.rollouts}", f"--seed {a.seed}",
             f"--budget-steps {a.budget_steps}", f"--chunk-steps {a.chunk_steps}", f"--device {a.device}",
@@ -195,8 +194,9 @@ def train_network(store: Store, cell: str, network: str, dataset: str, methods, 
         before = int(r.config.step)
         rec["ms_per_train_step"] = 1000 * rec["train_seconds"] / max(1, rec["timed_steps"])
         # the file's "machine" is the last run's; a network resumed on another machine names each it trained on
-        if cpu_model() not in rec.setdefault("cpu_models", []):
-            rec["cpu_models"].append(cpu_model())
+        cpu = cpu_model()
+        if cpu not in rec.setdefault("cpu_models", []):
+            rec["cpu_models"].append(cpu)
         kept = out / f"step_{int(r.config.step):06d}.pt"  # every chunk's checkpoint stays: --reevaluate reads them
         _copy(Path(r.last_path), kept)
         store.save()

@@ -7,7 +7,7 @@ budget and sizes, training time), since a CPU budget is not robomimic's 200k ste
 from __future__ import annotations
 
 from bench.hsp.results import METHODS as _RUN_METHODS
-from bench.hsp.results import NETWORK, PAPER
+from bench.hsp.results import NETWORK, PAPER, class_minus_bc
 
 # the paper's Fig. 5 column order: the baseline first; the names are run.py's
 METHODS = ("MimicGen-BC",) + tuple(m for m in _RUN_METHODS if m != "MimicGen-BC")
@@ -307,13 +307,11 @@ def source_demo_rows(old: dict, new: dict) -> list[str]:
 
 
 def _v2_class_minus_bc(new: dict) -> list[str]:
-    """The issue's goal (HSP-Class - MimicGen BC >= 20 points on D1/D2) on the v2 data's cells that have both."""
-    both = [n for n, c in new.get("cells", {}).items() if n.split("/")[1] in ("D1", "D2")
-            and all("best" in c.get("methods", {}).get(m, {}) for m in ("HSP-Class", "MimicGen-BC"))]
+    """The issue's goal (HSP-Class - MimicGen BC >= 20 points on D1/D2) on the v2 data's cells that have both,
+    beside the paper's on the same cells."""
+    both, ours = class_minus_bc(new)
     if not both:
         return []
-    ours = sum(new["cells"][n]["methods"]["HSP-Class"]["best"]["success_rate"]
-               - new["cells"][n]["methods"]["MimicGen-BC"]["best"]["success_rate"] for n in both) * 100 / len(both)
     paper = sum(PAPER[n]["HSP-Class"] - PAPER[n]["MimicGen-BC"] for n in both) / len(both)
     return [f"- HSP-Class minus MimicGen BC on the v2 data, D1/D2 cells with both ({', '.join(both)}): {ours:+.1f} "
             f"points (goal >= +20; the paper on the same cells {paper:+.1f})."]

@@ -92,3 +92,25 @@ def test_budget_rows_count_the_budgets_own_best_and_list_each_evaluation_past_it
     assert "HSP-TAMP 9/50 -> 9/50 (step 13500; 8 at 18k)" in row
     assert "HSP-Class 13/50 -> 15/50 (step 18000; 15 at 18k, 11 at 22.5k)" in row
     assert budget_rows(base, {}) == [] and budget_rows({}, longer) == []
+
+
+def test_equal_budget_gap_compares_both_networks_only_up_to_the_step_both_reached():
+    """The BC trained to 40.5k and HSP to 36k: the gap counts evaluations up to 36k only, and the budget's own."""
+    from bench.hsp.table import equal_budget_gap_rows
+
+    def ev(step, wins):
+        return {"step": step, "successes": wins, "rollouts": 50}
+    base = {"cells": {"Square/D2": {"methods": {"HSP-Class": {"best": ev(13500, 13)},
+                                                "MimicGen-BC": {"best": ev(13200, 3)}}}}}
+    longer = {"cells": {"Square/D2": {"methods": {
+        "HSP-Class": {"evals": [ev(18000, 20), ev(36000, 41)]},
+        "MimicGen-BC": {"evals": [ev(18000, 2), ev(36000, 5), ev(40500, 30)]}}}}}
+    (row,) = equal_budget_gap_rows(base, longer, "x.json")
+    assert "both networks to 36000 steps" in row
+    assert "HSP-Class 41/50 (step 36000), MimicGen-BC 5/50 (step 36000): +72.0 points" in row
+    assert "(at the budget +20.0; paper +44.7)" in row
+    longer["cells"]["Square/D2"]["methods"]["MimicGen-BC"]["evals"] = [ev(18000, 1)]
+    (row,) = equal_budget_gap_rows(base, longer, "x.json")  # BC's budget best (3 at 13.2k) still counts
+    assert "MimicGen-BC 3/50 (step 13200)" in row and "HSP-Class 20/50 (step 18000)" in row
+    longer["cells"]["Square/D0"] = longer["cells"].pop("Square/D2")
+    assert equal_budget_gap_rows(base, longer, "x.json") == []  # D0 is not a goal cell

@@ -25,6 +25,12 @@ Datasets and checkpoints live under --work (out/bench_hsp, not in git).
     .venv/bin/python bench/hsp/run.py --cells Square/D2 --methods HSP-TAMP HSP-Class HSP-Reg --budget-steps 40500 \
         --chunk-steps 4500 --eval-workers 2 --work out/bench_hsp_v2 --datasets-from bench/results/hsp_v2.json \
         --out bench/results/hsp_v2_d2_3x.json
+    # ... and its MimicGen BC to the same steps (its own --out, then merged beside the HSP methods)
+    .venv/bin/python bench/hsp/run.py --cells Square/D2 --methods MimicGen-BC --budget-steps 40500 --chunk-steps 4500 \
+        --eval-workers 2 --work out/bench_hsp_v2 --datasets-from bench/results/hsp_v2.json \
+        --out bench/results/hsp_v2_d2_bc_3x.json
+    .venv/bin/python bench/hsp/run.py --cells Square/D2 --methods MimicGen-BC --budget-steps 40500 --chunk-steps 4500 \
+        --work out/bench_hsp_v2 --merge-from bench/results/hsp_v2_d2_bc_3x.json --out bench/results/hsp_v2_d2_3x.json
     # robomimic's full budget where a GPU is lent
     .venv/bin/python bench/hsp/run.py --device cuda --budget-steps 200000 --out bench/results/hsp_cuda.json
     # the budget's cost on one cell (Square D1): the budget vs 3x

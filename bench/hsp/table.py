@@ -109,6 +109,30 @@ def budget_rows(base: dict, longer: dict, path: str = "bench/results/hsp_budget3
     return out
 
 
+def equal_budget_gap_rows(base: dict, longer: dict, path: str) -> list[str]:
+    """HSP-Class minus MimicGen BC with both networks trained past the budget to the same step (issue 23's
+    goal measure at a longer, equal budget): per D1/D2 cell of `longer` with both, each method's best over the
+    base file's evaluations and the longer run's up to the step both reached, beside the gap at the budget."""
+    out, pair = [], ("HSP-Class", "MimicGen-BC")
+    for name, c in longer.get("cells", {}).items():
+        b = base.get("cells", {}).get(name, {})
+        evals = {m: c.get("methods", {}).get(m, {}).get("evals", []) for m in pair}
+        at = {m: b.get("methods", {}).get(m, {}).get("best") for m in pair}
+        if name.split("/")[1] not in ("D1", "D2") or not all(evals.values()) or not all(at.values()):
+            continue
+        common = min(max(e["step"] for e in evals[m]) for m in pair)
+        best = {m: max([at[m]] + [e for e in evals[m] if e["step"] <= common], key=lambda e: e["successes"])
+                for m in pair}
+        gap = {k: 100 * (v[pair[0]]["successes"] / v[pair[0]]["rollouts"]
+                         - v[pair[1]]["successes"] / v[pair[1]]["rollouts"]) for k, v in (("at", at), ("best", best))}
+        paper = PAPER[name]["HSP-Class"] - PAPER[name]["MimicGen-BC"]
+        both = ", ".join(f"{m} {best[m]['successes']}/{best[m]['rollouts']} (step {best[m]['step']})" for m in pair)
+        out.append(f"- HSP-Class minus MimicGen BC at an equal longer budget, {name} ({path}; both networks to "
+                   f"{common} steps, best checkpoint each, the budget's evaluations included): {both}: "
+                   f"{gap['best']:+.1f} points (at the budget {gap['at']:+.1f}; paper {paper:+.1f}).")
+    return out
+
+
 def _trained(net: dict) -> str:
     """'22500 steps in 79 min', or for a network resumed from another run's last.pt (a record that timed only
     the steps it trained) '13500 steps, the last 9300 in 22 min'."""

@@ -359,18 +359,20 @@ def render() -> str:
     from bench.hsp.table import (budget_rows, demos_rows, device_rows, equal_budget_gap_rows, hsp_rows,
                                  observation_rows, reg_target_rows, size_rows, source_demo_rows, termination_rows)
 
-    hsp = hsp_rows(load("hsp"))
+    base = load("hsp")
+    hsp = hsp_rows(base)
     if hsp:
         before = load("hsp_absolute_obs")  # the run hsp_budget3x, hsp_h200 and hsp_reg_target continued
-        lines += [""] + hsp + observation_rows(before, load("hsp")) + budget_rows(before, load("hsp_budget3x"))
-        lines += equal_budget_gap_rows(before, load("hsp_budget3x"), "bench/results/hsp_budget3x.json")
-        lines += size_rows(before, load("hsp_budget3x"), load("hsp_h200")) + reg_target_rows(load("hsp_reg_target"))
-        lines += termination_rows(load("hsp_termination_labels"), load("hsp"))
-        lines += demos_rows(load("hsp"), load("hsp_200demos"))
-        lines += source_demo_rows(load("hsp"), load("hsp_v2"))
-        lines += budget_rows(load("hsp_v2"), load("hsp_v2_d2_3x"), "bench/results/hsp_v2_d2_3x.json")
-        lines += equal_budget_gap_rows(load("hsp_v2"), load("hsp_v2_d2_3x"), "bench/results/hsp_v2_d2_3x.json")
-        lines += device_rows(load("hsp"), load("hsp_cuda_hsp"), load("hsp_cuda_bc"))
+        longer, v2, v2_longer = load("hsp_budget3x"), load("hsp_v2"), load("hsp_v2_d2_3x")
+        lines += [""] + hsp + observation_rows(before, base) + budget_rows(before, longer)
+        lines += equal_budget_gap_rows(before, longer, "bench/results/hsp_budget3x.json")
+        lines += size_rows(before, longer, load("hsp_h200")) + reg_target_rows(load("hsp_reg_target"))
+        lines += termination_rows(load("hsp_termination_labels"), base)
+        lines += demos_rows(base, load("hsp_200demos"))
+        lines += source_demo_rows(base, v2)
+        lines += budget_rows(v2, v2_longer, "bench/results/hsp_v2_d2_3x.json")
+        lines += equal_budget_gap_rows(v2, v2_longer, "bench/results/hsp_v2_d2_3x.json")
+        lines += device_rows(base, load("hsp_cuda_hsp"), load("hsp_cuda_bc"))
     lines += ["", END]
     return "\n".join(lines)
 

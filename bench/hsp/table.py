@@ -7,7 +7,7 @@ budget and sizes, training time), since a CPU budget is not robomimic's 200k ste
 from __future__ import annotations
 
 from bench.hsp.results import METHODS as _RUN_METHODS
-from bench.hsp.results import NETWORK, PAPER, class_minus_bc
+from bench.hsp.results import GOAL_PAIR, NETWORK, class_minus_bc, goal_cell, paper_class_minus_bc
 
 # the paper's Fig. 5 column order: the baseline first; the names are run.py's
 METHODS = ("MimicGen-BC",) + tuple(m for m in _RUN_METHODS if m != "MimicGen-BC")
@@ -113,19 +113,19 @@ def equal_budget_gap_rows(base: dict, longer: dict, path: str) -> list[str]:
     """HSP-Class minus MimicGen BC with both networks trained past the budget to the same step (issue 23's
     goal measure at a longer, equal budget): per D1/D2 cell of `longer` with both, each method's best over the
     base file's evaluations and the longer run's up to the step both reached, beside the gap at the budget."""
-    out, pair = [], ("HSP-Class", "MimicGen-BC")
+    out, pair = [], GOAL_PAIR
     for name, c in longer.get("cells", {}).items():
         b = base.get("cells", {}).get(name, {})
         evals = {m: c.get("methods", {}).get(m, {}).get("evals", []) for m in pair}
         at = {m: b.get("methods", {}).get(m, {}).get("best") for m in pair}
-        if name.split("/")[1] not in ("D1", "D2") or not all(evals.values()) or not all(at.values()):
+        if not goal_cell(name) or not all(evals.values()) or not all(at.values()):
             continue
         common = min(max(e["step"] for e in evals[m]) for m in pair)
         best = {m: max([at[m]] + [e for e in evals[m] if e["step"] <= common], key=lambda e: e["successes"])
                 for m in pair}
         gap = {k: 100 * (v[pair[0]]["successes"] / v[pair[0]]["rollouts"]
                          - v[pair[1]]["successes"] / v[pair[1]]["rollouts"]) for k, v in (("at", at), ("best", best))}
-        paper = PAPER[name]["HSP-Class"] - PAPER[name]["MimicGen-BC"]
+        paper = paper_class_minus_bc([name])
         both = ", ".join(f"{m} {best[m]['successes']}/{best[m]['rollouts']} (step {best[m]['step']})" for m in pair)
         out.append(f"- HSP-Class minus MimicGen BC at an equal longer budget, {name} ({path}; both networks to "
                    f"{common} steps, best checkpoint each, the budget's evaluations included): {both}: "
@@ -336,6 +336,6 @@ def _v2_class_minus_bc(new: dict) -> list[str]:
     both, ours = class_minus_bc(new)
     if not both:
         return []
-    paper = sum(PAPER[n]["HSP-Class"] - PAPER[n]["MimicGen-BC"] for n in both) / len(both)
+    paper = paper_class_minus_bc(both)
     return [f"- HSP-Class minus MimicGen BC on the v2 data, D1/D2 cells with both ({', '.join(both)}): {ours:+.1f} "
             f"points (goal >= +20; the paper on the same cells {paper:+.1f})."]
